@@ -1,0 +1,226 @@
+//! Two-level BVH: a tree over instances, each an affine transform of a
+//! shared mesh BVH.
+
+use crate::{Aabb, BuildParams, Bvh, MeshBvh, MeshHit};
+use lucent_geom::{Affine3A, Ray};
+use std::sync::Arc;
+
+/// One placement of a mesh in the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    world_from_object: Affine3A,
+    object_from_world: Affine3A,
+    mesh: u32,
+}
+
+impl Instance {
+    /// An instance of mesh number `mesh`; `None` when the transform is not
+    /// finite or not invertible (such an instance could not be traced).
+    pub fn new(world_from_object: Affine3A, mesh: u32) -> Option<Self> {
+        let det = world_from_object.matrix3.determinant();
+        if !world_from_object.is_finite() || det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let object_from_world = world_from_object.inverse();
+        object_from_world.is_finite().then_some(Self {
+            world_from_object,
+            object_from_world,
+            mesh,
+        })
+    }
+
+    /// Object to world transform.
+    pub fn world_from_object(&self) -> &Affine3A {
+        &self.world_from_object
+    }
+
+    /// World to object transform.
+    pub fn object_from_world(&self) -> &Affine3A {
+        &self.object_from_world
+    }
+
+    /// Index of the instanced mesh.
+    pub fn mesh(&self) -> u32 {
+        self.mesh
+    }
+
+    /// The world ray expressed in object space. The direction is not
+    /// renormalised, so `t` means the same in both spaces.
+    #[inline]
+    pub fn object_ray(&self, ray: &Ray) -> Ray {
+        Ray::new(
+            self.object_from_world.transform_point3(ray.origin),
+            self.object_from_world.transform_vector3(ray.dir),
+        )
+    }
+}
+
+/// A hit in a two-level scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneHit {
+    /// Ray parameter (the same in world and object space).
+    pub t: f32,
+    /// Barycentric weight of the triangle's second vertex.
+    pub u: f32,
+    /// Barycentric weight of the triangle's third vertex.
+    pub v: f32,
+    /// Triangle index in the instanced mesh.
+    pub prim: u32,
+    /// Index of the instance hit.
+    pub instance: u32,
+}
+
+/// A BVH over instances of shared mesh BVHs.
+#[derive(Clone, Debug, Default)]
+pub struct SceneBvh {
+    meshes: Vec<Arc<MeshBvh>>,
+    instances: Vec<Instance>,
+    tlas: Bvh,
+}
+
+impl SceneBvh {
+    /// Builds the top level over `instances`; instance `i` refers to
+    /// `meshes[instances[i].mesh()]`. Instances naming a missing mesh are
+    /// kept (so indices stay stable) but can never be hit.
+    pub fn build(meshes: Vec<Arc<MeshBvh>>, instances: Vec<Instance>, params: &BuildParams) -> Self {
+        let boxes: Vec<Aabb> = instances
+            .iter()
+            .map(|inst| {
+                meshes
+                    .get(inst.mesh as usize)
+                    .map_or(Aabb::EMPTY, |m| m.bounds().transformed(&inst.world_from_object))
+            })
+            .collect();
+        let top_params = BuildParams {
+            max_leaf_size: 1,
+            ..*params
+        };
+        let tlas = Bvh::build(&boxes, &top_params);
+        Self {
+            meshes,
+            instances,
+            tlas,
+        }
+    }
+
+    /// The shared mesh trees.
+    pub fn meshes(&self) -> &[Arc<MeshBvh>] {
+        &self.meshes
+    }
+
+    /// The instances, in the order given to [`SceneBvh::build`].
+    pub fn instances(&self) -> &[Instance] {
+        &self.instances
+    }
+
+    /// World bounds of everything.
+    pub fn bounds(&self) -> Aabb {
+        self.tlas.bounds()
+    }
+
+    /// Memory of both levels, each mesh counted once, in bytes.
+    pub fn bytes(&self) -> usize {
+        self.tlas.bytes()
+            + self.instances.len() * size_of::<Instance>()
+            + self.meshes.iter().map(|m| m.bytes()).sum::<usize>()
+    }
+
+    fn instance_mesh(&self, idx: u32) -> Option<(&Instance, &MeshBvh)> {
+        let inst = self.instances.get(idx as usize)?;
+        let mesh = self.meshes.get(inst.mesh as usize)?;
+        Some((inst, mesh))
+    }
+
+    /// Closest hit with `0 < t < t_max`.
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<SceneHit> {
+        let mut best = None;
+        self.tlas.traverse_closest(ray, t_max, |idx, t_max| {
+            let (inst, mesh) = self.instance_mesh(idx)?;
+            let h = mesh.intersect(&inst.object_ray(ray), t_max)?;
+            best = Some(scene_hit(h, idx));
+            Some(h.t)
+        });
+        best
+    }
+
+    /// Whether anything is hit with `0 < t < t_max`.
+    pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        self.tlas.traverse_any(ray, t_max, |idx| {
+            self.instance_mesh(idx)
+                .is_some_and(|(inst, mesh)| mesh.occluded(&inst.object_ray(ray), t_max))
+        })
+    }
+
+    /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
+    /// order, until it returns `true`. Returns whether it was stopped.
+    pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(SceneHit) -> bool) -> bool {
+        self.tlas.traverse_any(ray, t_max, |idx| {
+            self.instance_mesh(idx).is_some_and(|(inst, mesh)| {
+                mesh.for_each_hit(&inst.object_ray(ray), t_max, |h| visit(scene_hit(h, idx)))
+            })
+        })
+    }
+}
+
+fn scene_hit(h: MeshHit, instance: u32) -> SceneHit {
+    SceneHit {
+        t: h.t,
+        u: h.u,
+        v: h.v,
+        prim: h.prim,
+        instance,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lucent_geom::{Quat, Vec3, shapes};
+
+    #[test]
+    fn instances_share_a_mesh_and_transform_rays() {
+        let sphere = Arc::new(MeshBvh::build(&shapes::icosphere(3), &BuildParams::default()));
+        let place = |x: f32, s: f32| {
+            Instance::new(
+                Affine3A::from_scale_rotation_translation(
+                    Vec3::splat(s),
+                    Quat::from_rotation_y(0.3),
+                    Vec3::new(x, 0.0, 0.0),
+                ),
+                0,
+            )
+        };
+        let instances: Vec<Instance> = [place(0.0, 1.0), place(5.0, 2.0), place(-5.0, 0.5)]
+            .into_iter()
+            .flatten()
+            .collect();
+        let scene = SceneBvh::build(vec![sphere.clone()], instances, &BuildParams::default());
+        assert_eq!(scene.meshes().len(), 1);
+        // From far right looking left: the big sphere at x=5 (radius 2) first.
+        let ray = Ray::new(Vec3::new(20.0, 0.0, 0.0), -Vec3::X);
+        let hit = scene.intersect(&ray, f32::INFINITY).expect("hits");
+        assert_eq!(hit.instance, 1);
+        assert!((hit.t - 13.0).abs() < 0.01, "{}", hit.t);
+        // A shorter ray stops before it.
+        assert!(scene.intersect(&ray, 12.9).is_none());
+        assert!(!scene.occluded(&ray, 12.9));
+        // All hits along the axis: two per sphere.
+        let mut n = 0;
+        scene.for_each_hit(&ray, f32::INFINITY, |_| {
+            n += 1;
+            false
+        });
+        assert_eq!(n, 6);
+    }
+
+    #[test]
+    fn singular_transforms_and_missing_meshes_are_harmless() {
+        assert!(Instance::new(Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0)), 0).is_none());
+        assert!(Instance::new(Affine3A::from_translation(Vec3::splat(f32::NAN)), 0).is_none());
+        let dangling = Instance::new(Affine3A::IDENTITY, 7).expect("invertible");
+        let scene = SceneBvh::build(Vec::new(), vec![dangling], &BuildParams::default());
+        let ray = Ray::new(Vec3::ZERO, Vec3::X);
+        assert!(scene.intersect(&ray, f32::INFINITY).is_none());
+        assert!(!scene.occluded(&ray, f32::INFINITY));
+    }
+}
