@@ -1,0 +1,36 @@
+//! Shading for Lucent: material and light parameters, textures, and the
+//! local lighting model evaluated at a hit point.
+//!
+//! - [`Material`]: the report's MTL-style parameters (Ka, Kd, Ks, n, plus
+//!   mirror and transmission weights, index of refraction, emission and a
+//!   diffuse texture).
+//! - [`Texture`]: linear-RGB texels with bilinear lookup (S6) and wrap modes.
+//! - [`Light`]: directional (the report's light from straight above) and
+//!   point lights.
+//! - [`phong`]: the report's Phong model (S9) split into per-light terms so
+//!   that it can be evaluated at vertices (Gouraud, S10) or per pixel.
+//! - [`optics`]: mirror reflection and Snell refraction with total internal
+//!   reflection.
+//!
+//! Invariants: no IO, no allocation per call, no panics on data (NaN texture
+//! coordinates, zero normals and the like give finite or well-defined
+//! results). Colours are linear RGB throughout.
+//!
+//! ```
+//! use lucent_shading::{phong, Vec3};
+//! // Light from straight above on an upward surface, seen from above.
+//! let t = phong::phong_terms(Vec3::Y, Vec3::Y, Vec3::Y, 10.0, Vec3::ONE);
+//! assert_eq!((t.diffuse, t.specular), (Vec3::ONE, Vec3::ONE));
+//! ```
+#![forbid(unsafe_code)]
+
+mod light;
+mod material;
+pub mod optics;
+pub mod phong;
+mod texture;
+
+pub use light::{Light, LightSample};
+pub use lucent_geom::{Vec2, Vec3};
+pub use material::Material;
+pub use texture::{Texture, TextureError, WrapMode};
