@@ -1,0 +1,59 @@
+//! The asset error type and the report of non-fatal problems.
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// Why an asset could not be loaded or saved. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum AssetError {
+    /// The file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// The file's contents are malformed.
+    #[error("{}{}: {message}", path.display(), location.map_or(String::new(), |l| format!(":{l}")))]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// Line number (text formats), when known.
+        location: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A scene file is malformed, or something it refers to failed to load;
+    /// located at the offending value in the scene file.
+    #[error("{0}")]
+    Scene(#[from] lucent_scene::SceneFileError),
+}
+
+impl AssetError {
+    pub(crate) fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        AssetError::Format {
+            path: path.into(),
+            location: None,
+            message: message.into(),
+        }
+    }
+}
+
+/// Problems found while loading that did not stop it, one line each
+/// ("file: what"), in the order they were found.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LoadReport {
+    /// Warnings for the user.
+    pub warnings: Vec<String>,
+}
+
+impl LoadReport {
+    pub(crate) fn warn(&mut self, path: &std::path::Path, message: impl fmt::Display) {
+        self.warnings.push(format!("{}: {message}", path.display()));
+    }
+
+    pub(crate) fn extend(&mut self, other: LoadReport) {
+        self.warnings.extend(other.warnings);
+    }
+}

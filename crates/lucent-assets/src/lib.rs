@@ -1,0 +1,41 @@
+//! Lucent's asset IO: the only crate that reads or writes files.
+//!
+//! - [`load_scene`] reads a TOML scene file and everything it refers to
+//!   (meshes, textures) and spawns the entities of a
+//!   [`Scene`](lucent_scene::Scene);
+//! - [`load_mesh`] reads one OBJ (with its MTL materials) or PLY file;
+//! - [`load_texture`] decodes PNG/JPEG into linear RGB;
+//! - [`encode_png`] / [`save_png`] write 8-bit sRGB images.
+//!
+//! Reading goes through an [`AssetSource`]: [`FileSystem`] for files on
+//! disk, [`MemorySource`] for assets compiled into a binary (the app's
+//! built-in scene), so both take the same code path.
+//!
+//! Invariants: bad input gives an [`AssetError`] naming the file (and, where
+//! known, the line and column), never a panic; nothing here calls `unwrap`
+//! or `expect` on file data. Problems that do not stop loading are counted
+//! in a [`LoadReport`].
+//!
+//! ```no_run
+//! let (scene, report) = lucent_assets::load_scene(std::path::Path::new("res/scenes/seed.toml"))?;
+//! for w in &report.warnings {
+//!     eprintln!("warning: {w}");
+//! }
+//! # Ok::<(), lucent_assets::AssetError>(())
+//! ```
+#![forbid(unsafe_code)]
+#![warn(clippy::unwrap_used, clippy::expect_used)]
+
+mod error;
+mod image_io;
+mod mesh;
+mod obj;
+mod ply;
+mod scene_load;
+mod source;
+
+pub use error::{AssetError, LoadReport};
+pub use image_io::{encode_png, load_texture, save_png, texture_from_bytes};
+pub use mesh::{MeshPart, load_mesh, load_mesh_from};
+pub use scene_load::{load_scene, load_scene_from};
+pub use source::{AssetSource, FileSystem, MemorySource, normalize_path};

@@ -1,0 +1,103 @@
+//! Tests of scene loading from memory.
+
+use super::*;
+use crate::MemorySource;
+use lucent_scene::components::{MaterialRef, MeshRef, Name};
+
+const PLY: &[u8] = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+
+fn n_triangles(scene: &Scene) -> usize {
+    scene.world.query::<&Mesh>().iter().map(|m| m.0.n_triangles()).sum()
+}
+
+fn load(scene_text: &'static str) -> Result<(Scene, LoadReport), String> {
+    let src = MemorySource::new()
+        .with_file("scenes/s.toml", scene_text.as_bytes())
+        .with_file("meshes/tri.ply", PLY);
+    load_scene_from(&src, Path::new("scenes/s.toml")).map_err(|e| e.to_string())
+}
+
+#[test]
+fn shared_meshes_are_loaded_once_and_materials_resolve() {
+    let text = r#"
+[[lights]]
+type = "directional"
+to_light = [0, 2, 0]
+
+[materials.red]
+kd = [1, 0, 0]
+
+[[objects]]
+mesh = "../meshes/tri.ply"
+material = "red"
+
+[[objects]]
+name = "second"
+mesh = "../meshes/./tri.ply"
+translate = [2, 0, 0]
+
+[[objects]]
+shape = "sphere"
+subdivisions = 1
+"#;
+    let (scene, report) = load(text).unwrap_or_else(|e| panic!("{e}"));
+    let c = scene.counts();
+    assert_eq!((c.meshes, c.instances, c.lights, c.cameras), (2, 3, 1, 1));
+    assert_eq!(n_triangles(&scene), 1 + 80);
+    // red + the default material for the other two.
+    assert_eq!(c.materials, 2);
+    let names: Vec<String> = scene
+        .world
+        .query::<(&Name, &MeshRef, &MaterialRef)>()
+        .iter()
+        .map(|(n, _, _)| n.0.clone())
+        .collect();
+    assert!(
+        names.contains(&"tri".to_owned())
+            && names.contains(&"second".to_owned())
+            && names.contains(&"sphere".to_owned())
+    );
+    // The PLY had no normals: smooth ones were added for shading.
+    for m in scene.world.query::<&Mesh>().iter() {
+        assert!(m.0.normals().is_some());
+    }
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    // No camera in the file: it frames the scene.
+    let rig = scene.camera().map(|(_, r)| r);
+    assert!(rig.is_some_and(|r| r.radius > 1.0 && r.center.is_finite()));
+}
+
+#[test]
+fn missing_files_are_reported_at_the_reference() {
+    let err = load("[[objects]]\nmesh = \"../meshes/nope.ply\"\n")
+        .map(|_| ())
+        .unwrap_err();
+    assert!(
+        err.starts_with("scenes/s.toml:2:8: cannot load mesh '../meshes/nope.ply': meshes/nope.ply: "),
+        "{err}"
+    );
+    let err = load("[materials.a]\ntexture = \"wood.png\"\n").map(|_| ()).unwrap_err();
+    assert!(
+        err.starts_with("scenes/s.toml:2:11: cannot load texture 'wood.png': scenes/wood.png: "),
+        "{err}"
+    );
+}
+
+#[test]
+fn scenes_without_lights_warn() {
+    let (_, report) = load("[[objects]]\nshape = \"cube\"\n").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        report.warnings,
+        vec!["scenes/s.toml: no lights: only ambient light will show".to_owned()]
+    );
+}
+
+#[test]
+fn non_utf8_scene_is_an_error_with_a_line() {
+    let src = MemorySource::new().with_file("s.toml", b"# ok\n\xff\xfe\n");
+    let err = load_scene_from(&src, Path::new("s.toml"))
+        .map(|_| ())
+        .map_err(|e| e.to_string());
+    assert_eq!(err, Err("s.toml:2: the scene file is not valid UTF-8 text".to_owned()));
+}
