@@ -1,0 +1,271 @@
+//! The extract step: flattens the ECS world into plain render data.
+//!
+//! This is the only file of the renderer that names hecs. Everything after
+//! it addresses meshes, materials and instances by `u32` index.
+
+use lucent_accel::{BuildParams, Instance, MeshBvh, SceneBvh};
+use lucent_geom::{Affine3A, Mat3A, TriMesh};
+use lucent_scene::camera::{Camera, OrbitRig};
+use lucent_scene::components::{Light, Material, MaterialRef, Mesh, MeshRef, Name};
+use lucent_scene::hecs::Entity;
+use lucent_scene::{Environment, Scene, world_from_local};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::fmt;
+use std::sync::Arc;
+
+/// One placed mesh, ready for shading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderInstance {
+    /// Index into [`RenderScene::meshes`].
+    pub mesh: u32,
+    /// Index into [`RenderScene::materials`].
+    pub material: u32,
+    /// Object to world.
+    pub world_from_object: Affine3A,
+    /// Transforms object-space normals to world space (inverse transpose).
+    pub normal_from_object: Mat3A,
+}
+
+/// What the scene contains, so the renderer can skip what it does not need.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SceneFeatures {
+    /// Some material lets light through (refraction rays, attenuating shadows).
+    pub transmissive: bool,
+    /// Some material is a mirror (reflection rays).
+    pub reflective: bool,
+    /// Some material has a texture.
+    pub textured: bool,
+}
+
+/// The flattened scene the kernel renders.
+#[derive(Clone, Debug)]
+pub struct RenderScene {
+    /// Meshes, each stored once however many instances use it.
+    pub meshes: Vec<Arc<TriMesh>>,
+    /// Materials.
+    pub materials: Vec<Material>,
+    /// Instances; index `i` is instance `i` of [`RenderScene::bvh`].
+    pub instances: Vec<RenderInstance>,
+    /// Instance names, for messages and statistics.
+    pub instance_names: Vec<String>,
+    /// Lights, world space.
+    pub lights: Vec<Light>,
+    /// Field of view.
+    pub camera: Camera,
+    /// Camera pose; the viewer changes it between frames without
+    /// re-extracting.
+    pub rig: OrbitRig,
+    /// Background and ambient light.
+    pub environment: Environment,
+    /// Two-level BVH over the instances.
+    pub bvh: SceneBvh,
+    /// What the scene needs.
+    pub features: SceneFeatures,
+}
+
+/// Why a scene could not be extracted.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ExtractError {
+    /// `Scene::active_camera` is unset or lacks `Camera` and `OrbitRig`.
+    NoCamera,
+    /// An instance's `MeshRef` names an entity without a `Mesh`.
+    DanglingMesh {
+        /// The instance.
+        instance: String,
+    },
+    /// An instance's `MaterialRef` names an entity without a `Material`.
+    DanglingMaterial {
+        /// The instance.
+        instance: String,
+    },
+    /// An instance's transform is not finite or not invertible.
+    SingularTransform {
+        /// The instance.
+        instance: String,
+    },
+}
+
+impl fmt::Display for ExtractError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ExtractError::NoCamera => write!(f, "the scene has no active camera"),
+            ExtractError::DanglingMesh { instance } => write!(f, "instance '{instance}' refers to a missing mesh"),
+            ExtractError::DanglingMaterial { instance } => {
+                write!(f, "instance '{instance}' refers to a missing material")
+            }
+            ExtractError::SingularTransform { instance } => {
+                write!(
+                    f,
+                    "instance '{instance}' has a transform that is not finite or not invertible"
+                )
+            }
+        }
+    }
+}
+
+impl std::error::Error for ExtractError {}
+
+/// Flattens `scene` into render data and builds its BVHs (meshes in
+/// parallel). Instances are ordered by entity so the result does not depend
+/// on the order hecs stores them in.
+pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
+    let (camera, rig) = scene.camera().ok_or(ExtractError::NoCamera)?;
+    let world = &scene.world;
+    let mut rows: Vec<(Entity, Entity, Entity, String)> = world
+        .query::<(Entity, &MeshRef, &MaterialRef, Option<&Name>)>()
+        .iter()
+        .map(|(e, m, mat, name)| (e, m.0, mat.0, name.map_or_else(|| format!("{e:?}"), |n| n.0.clone())))
+        .collect();
+    rows.sort_by_key(|r| r.0.to_bits());
+
+    let mut mesh_index: HashMap<Entity, u32> = HashMap::new();
+    let mut material_index: HashMap<Entity, u32> = HashMap::new();
+    let mut meshes: Vec<Arc<TriMesh>> = Vec::new();
+    let mut materials: Vec<Material> = Vec::new();
+    let mut instances = Vec::with_capacity(rows.len());
+    let mut instance_names = Vec::with_capacity(rows.len());
+    let mut bvh_instances = Vec::with_capacity(rows.len());
+    for (entity, mesh_e, material_e, name) in rows {
+        let mesh = match mesh_index.get(&mesh_e) {
+            Some(&i) => i,
+            None => {
+                let m = world
+                    .get::<&Mesh>(mesh_e)
+                    .map_err(|_| ExtractError::DanglingMesh { instance: name.clone() })?;
+                meshes.push(m.0.clone());
+                let i = (meshes.len() - 1) as u32;
+                mesh_index.insert(mesh_e, i);
+                i
+            }
+        };
+        let material = match material_index.get(&material_e) {
+            Some(&i) => i,
+            None => {
+                let m = world
+                    .get::<&Material>(material_e)
+                    .map_err(|_| ExtractError::DanglingMaterial { instance: name.clone() })?;
+                materials.push((*m).clone());
+                let i = (materials.len() - 1) as u32;
+                material_index.insert(material_e, i);
+                i
+            }
+        };
+        let world_from_object = world_from_local(world, entity);
+        let bvh_instance = Instance::new(world_from_object, mesh)
+            .ok_or_else(|| ExtractError::SingularTransform { instance: name.clone() })?;
+        bvh_instances.push(bvh_instance);
+        instances.push(RenderInstance {
+            mesh,
+            material,
+            world_from_object,
+            normal_from_object: world_from_object.matrix3.inverse().transpose(),
+        });
+        instance_names.push(name);
+    }
+
+    let params = BuildParams::default();
+    let blas: Vec<Arc<MeshBvh>> = meshes
+        .par_iter()
+        .map(|m| Arc::new(MeshBvh::build(m, &params)))
+        .collect();
+    let bvh = SceneBvh::build(blas, bvh_instances, &params);
+
+    let mut lights: Vec<(u64, Light)> = world
+        .query::<(Entity, &Light)>()
+        .iter()
+        .map(|(e, l)| (e.to_bits().get(), *l))
+        .collect();
+    lights.sort_by_key(|l| l.0);
+    let features = SceneFeatures {
+        transmissive: materials.iter().any(Material::is_transmissive),
+        reflective: materials.iter().any(Material::is_reflective),
+        textured: materials.iter().any(|m| m.diffuse_map.is_some()),
+    };
+    Ok(RenderScene {
+        meshes,
+        materials,
+        instances,
+        instance_names,
+        lights: lights.into_iter().map(|(_, l)| l).collect(),
+        camera,
+        rig,
+        environment: scene.environment,
+        bvh,
+        features,
+    })
+}
+
+impl RenderScene {
+    /// Triangles over all instances.
+    pub fn n_instanced_triangles(&self) -> usize {
+        self.instances
+            .iter()
+            .map(|i| self.meshes[i.mesh as usize].n_triangles())
+            .sum()
+    }
+
+    /// Triangles stored (each shared mesh once).
+    pub fn n_unique_triangles(&self) -> usize {
+        self.meshes.iter().map(|m| m.n_triangles()).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lucent_geom::{Vec3, shapes};
+
+    fn scene() -> (Scene, Entity, Entity) {
+        let mut scene = Scene::default();
+        let mesh = scene.add_mesh("ball", shapes::icosphere(1));
+        let mat = scene.add_material(
+            "glass",
+            Material {
+                kt: Vec3::splat(0.5),
+                ..Material::default()
+            },
+        );
+        scene.add_instance("a", mesh, mat, Affine3A::IDENTITY);
+        scene.add_instance("b", mesh, mat, Affine3A::from_translation(Vec3::X * 3.0));
+        scene.add_camera("cam", Camera::default(), OrbitRig::default());
+        (scene, mesh, mat)
+    }
+
+    #[test]
+    fn shared_meshes_and_materials_are_stored_once() {
+        let (scene, _, _) = scene();
+        let rs = extract(&scene).map_err(|e| e.to_string());
+        let Ok(rs) = rs else { panic!("{rs:?}") };
+        assert_eq!((rs.meshes.len(), rs.materials.len(), rs.instances.len()), (1, 1, 2));
+        assert_eq!(rs.bvh.meshes().len(), 1);
+        assert_eq!((rs.n_instanced_triangles(), rs.n_unique_triangles()), (160, 80));
+        assert_eq!(rs.instance_names, vec!["a".to_owned(), "b".to_owned()]);
+        assert!(rs.features.transmissive && !rs.features.reflective && !rs.features.textured);
+    }
+
+    #[test]
+    fn broken_worlds_are_errors_not_panics() {
+        let err = |s: &Scene| extract(s).map(|_| ()).map_err(|e| e.to_string());
+        let (mut s, _, _) = scene();
+        s.active_camera = None;
+        assert_eq!(err(&s), Err("the scene has no active camera".to_owned()));
+
+        let (mut s, _, mat) = scene();
+        let ghost = s.world.spawn(());
+        s.add_instance("ghost", ghost, mat, Affine3A::IDENTITY);
+        assert_eq!(err(&s), Err("instance 'ghost' refers to a missing mesh".to_owned()));
+
+        let (mut s, mesh, _) = scene();
+        let ghost = s.world.spawn(());
+        s.add_instance("bare", mesh, ghost, Affine3A::IDENTITY);
+        assert_eq!(err(&s), Err("instance 'bare' refers to a missing material".to_owned()));
+
+        let (mut s, mesh, mat) = scene();
+        s.add_instance("flat", mesh, mat, Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0)));
+        assert_eq!(
+            err(&s),
+            Err("instance 'flat' has a transform that is not finite or not invertible".to_owned())
+        );
+    }
+}

@@ -1,0 +1,193 @@
+//! The film: per-pixel radiance sums, and conversion to 8-bit sRGB.
+
+use lucent_geom::{DVec3, Vec3};
+use std::fmt;
+
+/// Accumulated linear radiance for every pixel, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    width: u32,
+    height: u32,
+    pub(crate) sum: Vec<Vec3>,
+    pub(crate) n_samples: u32,
+}
+
+impl Film {
+    /// A black film with no samples.
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            sum: vec![Vec3::ZERO; width as usize * height as usize],
+            n_samples: 0,
+        }
+    }
+
+    /// A film holding one sample of each given pixel (row-major, row 0 at
+    /// the top); `None` unless there are exactly `width * height` pixels.
+    pub fn from_pixels(width: u32, height: u32, pixels: Vec<Vec3>) -> Option<Self> {
+        (pixels.len() == width as usize * height as usize).then_some(Self {
+            width,
+            height,
+            sum: pixels,
+            n_samples: 1,
+        })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Samples accumulated per pixel.
+    pub fn n_samples(&self) -> u32 {
+        self.n_samples
+    }
+
+    /// Forgets all samples.
+    pub fn clear(&mut self) {
+        self.sum.fill(Vec3::ZERO);
+        self.n_samples = 0;
+    }
+
+    /// Mean radiance of pixel `(x, y)` (black before the first sample).
+    pub fn pixel(&self, x: u32, y: u32) -> Vec3 {
+        let i = y as usize * self.width as usize + x as usize;
+        self.sum.get(i).map_or(Vec3::ZERO, |s| *s * self.scale())
+    }
+
+    fn scale(&self) -> f32 {
+        if self.n_samples == 0 {
+            0.0
+        } else {
+            1.0 / self.n_samples as f32
+        }
+    }
+
+    /// Mean radiance of every pixel, row-major.
+    pub fn to_linear(&self) -> Vec<Vec3> {
+        let k = self.scale();
+        self.sum.iter().map(|s| *s * k).collect()
+    }
+
+    /// 8-bit sRGB, RGB interleaved, row 0 at the top: each channel clamped to
+    /// [0, 1], encoded with the sRGB transfer function and rounded. NaN shows
+    /// as black.
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        let k = self.scale();
+        let mut out = Vec::with_capacity(self.sum.len() * 3);
+        for s in &self.sum {
+            for c in (*s * k).to_array() {
+                out.push((linear_to_srgb(c) * 255.0 + 0.5) as u8);
+            }
+        }
+        out
+    }
+
+    /// Summary statistics of the mean image.
+    pub fn stats(&self) -> ImageStats {
+        let mut mean = DVec3::ZERO;
+        let (mut min_lum, mut max_lum) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut n_non_finite = 0;
+        for px in self.to_linear() {
+            if !px.is_finite() {
+                n_non_finite += 1;
+                continue;
+            }
+            mean += px.as_dvec3();
+            let lum = luminance(px);
+            min_lum = min_lum.min(lum);
+            max_lum = max_lum.max(lum);
+        }
+        let n_finite = (self.sum.len() - n_non_finite).max(1) as f64;
+        ImageStats {
+            width: self.width,
+            height: self.height,
+            n_samples: self.n_samples,
+            mean_rgb: (mean / n_finite).as_vec3(),
+            min_luminance: if min_lum.is_finite() { min_lum } else { 0.0 },
+            max_luminance: if max_lum.is_finite() { max_lum } else { 0.0 },
+            n_non_finite,
+        }
+    }
+}
+
+/// Rec. 709 luminance of linear RGB.
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// The sRGB opto-electronic transfer function of a linear value clamped to
+/// [0, 1] (NaN maps to 0).
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// What a snapshot test records about an image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageStats {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub n_samples: u32,
+    /// Mean linear RGB over finite pixels.
+    pub mean_rgb: Vec3,
+    /// Smallest pixel luminance.
+    pub min_luminance: f32,
+    /// Largest pixel luminance.
+    pub max_luminance: f32,
+    /// Pixels with a NaN or infinite channel.
+    pub n_non_finite: usize,
+}
+
+impl fmt::Display for ImageStats {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let m = self.mean_rgb;
+        writeln!(f, "size: {}x{}", self.width, self.height)?;
+        writeln!(f, "samples_per_pixel: {}", self.n_samples)?;
+        writeln!(f, "mean_rgb: {:.3} {:.3} {:.3}", m.x, m.y, m.z)?;
+        writeln!(f, "luminance_min: {:.3}", self.min_luminance)?;
+        writeln!(f, "luminance_max: {:.3}", self.max_luminance)?;
+        write!(f, "nan_or_inf_pixels: {}", self.n_non_finite)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_curve_endpoints_and_midpoint() {
+        assert_eq!(linear_to_srgb(0.0), 0.0);
+        assert!((linear_to_srgb(1.0) - 1.0).abs() < 1e-6);
+        assert!((linear_to_srgb(0.2158605) - 128.0 / 255.0).abs() < 1e-4);
+        assert_eq!(linear_to_srgb(f32::NAN), 0.0);
+        assert_eq!(linear_to_srgb(7.0), linear_to_srgb(1.0));
+    }
+
+    #[test]
+    fn film_averages_samples_and_counts_nan() {
+        let mut film = Film::new(2, 1);
+        film.sum[0] = Vec3::splat(2.0);
+        film.sum[1] = Vec3::new(f32::NAN, 0.0, 0.0);
+        film.n_samples = 2;
+        assert_eq!(film.pixel(0, 0), Vec3::ONE);
+        assert_eq!(film.to_srgb8(), vec![255, 255, 255, 0, 0, 0]);
+        let s = film.stats();
+        assert_eq!((s.n_non_finite, s.mean_rgb), (1, Vec3::ONE));
+        film.clear();
+        assert_eq!((film.n_samples(), film.pixel(0, 0)), (0, Vec3::ZERO));
+    }
+}

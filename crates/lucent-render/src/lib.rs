@@ -1,0 +1,44 @@
+//! Lucent's renderer.
+//!
+//! The spine: [`extract`] flattens a [`Scene`](lucent_scene::Scene) (an ECS
+//! world) into a [`RenderScene`] of plain vectors addressed by `u32`, with a
+//! two-level BVH; [`render_samples`] then traces it with the report's
+//! Whitted integrator ([`whitted`]) into a [`Film`], in parallel over image
+//! rows with rayon.
+//!
+//! Invariants:
+//! - only `extract.rs` sees hecs; the kernel works on [`RenderScene`];
+//! - the kernel cannot fail and allocates nothing per ray;
+//! - determinism: every (pixel, sample, seed) has its own random stream and
+//!   each pixel accumulates its samples in a fixed order, so the same scene,
+//!   settings and seed give the same bytes on 1 or N threads.
+//!
+//! ```
+//! use lucent_render::{extract, render, RenderSettings};
+//! use lucent_scene::{Scene, components::*};
+//! use lucent_geom::{shapes, Affine3A, Vec3};
+//! let mut scene = Scene::default();
+//! let mesh = scene.add_mesh("ball", shapes::icosphere(2));
+//! let mat = scene.add_material("white", Material::default());
+//! scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
+//! scene.add_light("sun", Light::Directional { to_light: Vec3::Y, intensity: Vec3::ONE });
+//! scene.add_camera("cam", Camera::default(), OrbitRig::default());
+//! let rs = extract(&scene)?;
+//! let settings = RenderSettings { width: 32, height: 24, ..RenderSettings::default() };
+//! let out = render(&rs, &settings, &|_| {});
+//! assert_eq!(out.film.to_srgb8().len(), 32 * 24 * 3);
+//! # Ok::<(), lucent_render::ExtractError>(())
+//! ```
+#![forbid(unsafe_code)]
+
+mod camera;
+mod extract;
+mod film;
+mod render;
+pub mod whitted;
+
+pub use camera::PinholeCamera;
+pub use extract::{ExtractError, RenderInstance, RenderScene, SceneFeatures, extract};
+pub use film::{Film, ImageStats, linear_to_srgb};
+pub use lucent_scene::{RenderSettings, Shading};
+pub use render::{RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, with_threads};

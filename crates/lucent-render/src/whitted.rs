@@ -1,0 +1,296 @@
+//! The report's Whitted ray tracer (S9 to S12).
+//!
+//! For a ray that hits a surface:
+//!
+//! ```text
+//! result = local * shadow + Kr * reflected + Kt * transmitted + emission
+//! ```
+//!
+//! - `local` is the Phong model `Ia Ka + Ip Kd (L.N) + Ip Ks (R.V)^n`,
+//!   evaluated per pixel or at the triangle's vertices and interpolated
+//!   (Gouraud); a diffuse texture and vertex colours tint Ka and Kd.
+//! - `shadow` comes from one shadow ray per light: an opaque blocker stops
+//!   it, each crossing of a translucent surface multiplies it by that
+//!   surface's `kt` (so a closed translucent shell attenuates twice), a clear
+//!   one lets everything through. Surfaces facing away from a light get no
+//!   direct light from it and need no shadow ray. With the report's
+//!   `shadowed_ambient` the ambient term is darkened too (by the mean shadow
+//!   factor over lights), which makes opaque shadows black.
+//! - Reflected and refracted rays recurse until `max_depth`, or until the
+//!   ray's weight (the product of `kr`/`kt` along its path) falls under
+//!   `min_weight` (S11). Refraction follows Snell's law with the material's
+//!   index of refraction; total internal reflection sends the transmitted
+//!   share back along the mirror direction.
+//!
+//! Secondary rays start at the hit point pushed off the surface along the
+//! geometric normal by an amount scaled to the point's floating-point error
+//! ([`lucent_geom::offset_ray_origin`]), never by skipping the last object
+//! hit: concave meshes can shadow and reflect themselves.
+
+use crate::{RayStats, RenderScene, RenderSettings};
+use lucent_accel::SceneHit;
+use lucent_geom::{Ray, Vec2, Vec3, offset_ray_origin, triangle_normal};
+use lucent_scene::Shading;
+use lucent_shading::optics::{reflect, refract};
+use lucent_shading::phong::{PhongTerms, combine, phong_terms};
+use lucent_shading::{LightSample, Material};
+
+/// A Whitted tracer over one scene with fixed settings.
+pub struct Whitted<'a> {
+    scene: &'a RenderScene,
+    max_depth: u32,
+    min_weight: f32,
+    shading: Shading,
+}
+
+/// Geometry at a hit, in world space.
+struct Surface {
+    /// Hit point.
+    p: Vec3,
+    /// Unit geometric normal on the side the ray came from.
+    ng: Vec3,
+    /// Unit shading normal, flipped with `ng`.
+    ns: Vec3,
+    /// Whether the ray hit the front (counter-clockwise) face.
+    front: bool,
+    /// Barycentrics (w, u, v) of the three corners.
+    bary: Vec3,
+    /// Corner positions.
+    corners: [Vec3; 3],
+    /// Corner shading normals (flipped with `ng`), if the mesh has normals.
+    corner_normals: Option<[Vec3; 3]>,
+    /// Interpolated texture coordinates, if the mesh has them.
+    uv: Option<Vec2>,
+    /// Interpolated vertex colour, if the mesh has colours.
+    color: Option<Vec3>,
+    /// Material index.
+    material: u32,
+}
+
+impl<'a> Whitted<'a> {
+    /// A tracer for `scene` using the recursion and shading settings.
+    pub fn new(scene: &'a RenderScene, settings: &RenderSettings) -> Self {
+        Self {
+            scene,
+            max_depth: settings.max_depth,
+            min_weight: settings.min_weight,
+            shading: settings.shading,
+        }
+    }
+
+    /// Radiance arriving along a camera ray.
+    pub fn trace_primary(&self, ray: Ray, stats: &mut RayStats) -> Vec3 {
+        stats.primary += 1;
+        self.trace(&ray, 0, 1.0, stats)
+    }
+
+    fn trace(&self, ray: &Ray, depth: u32, weight: f32, stats: &mut RayStats) -> Vec3 {
+        let Some(hit) = self.scene.bvh.intersect(ray, f32::INFINITY) else {
+            return self.scene.environment.background;
+        };
+        let surf = self.surface(&hit, ray);
+        let Some(material) = self.scene.materials.get(surf.material as usize) else {
+            return Vec3::ZERO;
+        };
+        let mut color = self.local(ray, &surf, material, stats) + material.emission;
+        if depth >= self.max_depth {
+            return color;
+        }
+        // Step: mirror reflection.
+        let w_reflect = weight * material.kr.max_element();
+        if material.is_reflective() && w_reflect >= self.min_weight {
+            stats.reflection += 1;
+            let mirrored = Ray::new(offset_ray_origin(surf.p, surf.ng), mirror_dir(ray.dir, &surf));
+            color += material.kr * self.trace(&mirrored, depth + 1, w_reflect, stats);
+        }
+        // Step: transmission (Snell refraction, or total internal reflection).
+        let w_transmit = weight * material.kt.max_element();
+        if material.is_transmissive() && w_transmit >= self.min_weight {
+            stats.refraction += 1;
+            let eta = if surf.front { 1.0 / material.ior } else { material.ior };
+            let refracted = refract(ray.dir, surf.ns, eta)
+                .filter(|t| t.dot(surf.ng) < 0.0)
+                .or_else(|| refract(ray.dir, surf.ng, eta));
+            let next = match refracted {
+                Some(t) => Ray::new(offset_ray_origin(surf.p, -surf.ng), t.normalize()),
+                None => Ray::new(offset_ray_origin(surf.p, surf.ng), mirror_dir(ray.dir, &surf)),
+            };
+            color += material.kt * self.trace(&next, depth + 1, w_transmit, stats);
+        }
+        color
+    }
+
+    /// The report's local model times its shadow factors.
+    fn local(&self, ray: &Ray, surf: &Surface, material: &Material, stats: &mut RayStats) -> Vec3 {
+        let env = &self.scene.environment;
+        let mut tint = material.diffuse_tint(surf.uv);
+        if let Some(c) = surf.color {
+            tint *= c;
+        }
+        let mut direct = PhongTerms::default();
+        let mut shadow_sum = Vec3::ZERO;
+        let mut n_lights = 0u32;
+        for light in &self.scene.lights {
+            let Some(ls) = light.sample(surf.p) else { continue };
+            n_lights += 1;
+            // A surface whose shading normal faces away from the light gets
+            // no direct light from it (an attached shadow, not a cast one):
+            // no shadow ray, and its ambient term is not darkened.
+            if ls.to_light.dot(surf.ns) <= 0.0 {
+                shadow_sum += Vec3::ONE;
+                if self.shading == Shading::Gouraud {
+                    // Interpolated vertex lighting may still reach here near
+                    // the terminator; keep it, as Gouraud shading does.
+                    direct = direct + self.terms(ray, surf, material, light, &ls);
+                }
+                continue;
+            }
+            let shadow = self.shadow(surf, &ls, stats);
+            shadow_sum += shadow;
+            if shadow != Vec3::ZERO {
+                direct = direct + self.terms(ray, surf, material, light, &ls) * shadow;
+            }
+        }
+        let ambient_shadow = if env.shadowed_ambient && n_lights > 0 {
+            shadow_sum / n_lights as f32
+        } else {
+            Vec3::ONE
+        };
+        combine(
+            direct,
+            env.ambient * ambient_shadow,
+            material.ka * tint,
+            material.kd * tint,
+            material.ks,
+        )
+    }
+
+    /// Phong terms for one light: at the hit point (Phong) or at the corners,
+    /// interpolated (Gouraud).
+    fn terms(
+        &self,
+        ray: &Ray,
+        surf: &Surface,
+        material: &Material,
+        light: &lucent_shading::Light,
+        ls: &LightSample,
+    ) -> PhongTerms {
+        let n = material.shininess;
+        match (self.shading, surf.corner_normals) {
+            (Shading::Gouraud, Some(normals)) => {
+                let mut sum = PhongTerms::default();
+                for ((p, normal), b) in surf.corners.into_iter().zip(normals).zip(surf.bary.to_array()) {
+                    let Some(ls_p) = light.sample(p) else { continue };
+                    let v = (ray.origin - p).normalize_or_zero();
+                    sum = sum + phong_terms(normal, ls_p.to_light, v, n, ls_p.intensity) * b;
+                }
+                sum
+            }
+            _ => phong_terms(surf.ns, ls.to_light, -ray.dir, n, ls.intensity),
+        }
+    }
+
+    /// How much of a light reaches `surf.p`: 1 unblocked, 0 behind an opaque
+    /// surface, the product of `kt` over translucent crossings otherwise.
+    fn shadow(&self, surf: &Surface, ls: &LightSample, stats: &mut RayStats) -> Vec3 {
+        stats.shadow += 1;
+        let side = if ls.to_light.dot(surf.ng) >= 0.0 {
+            surf.ng
+        } else {
+            -surf.ng
+        };
+        let ray = Ray::new(offset_ray_origin(smooth_point(surf), side), ls.to_light);
+        let bvh = &self.scene.bvh;
+        if !self.scene.features.transmissive {
+            return if bvh.occluded(&ray, ls.distance) {
+                Vec3::ZERO
+            } else {
+                Vec3::ONE
+            };
+        }
+        let mut transmittance = Vec3::ONE;
+        bvh.for_each_hit(&ray, ls.distance, |hit| {
+            let kt = self
+                .scene
+                .instances
+                .get(hit.instance as usize)
+                .and_then(|inst| self.scene.materials.get(inst.material as usize))
+                .map_or(Vec3::ZERO, |m| m.kt);
+            transmittance *= kt;
+            transmittance == Vec3::ZERO
+        });
+        transmittance
+    }
+
+    /// World-space geometry of a hit.
+    fn surface(&self, hit: &SceneHit, ray: &Ray) -> Surface {
+        let inst = &self.scene.instances[hit.instance as usize];
+        let mesh = &self.scene.meshes[inst.mesh as usize];
+        let idx = mesh.indices()[hit.prim as usize];
+        let bary = Vec3::new(1.0 - hit.u - hit.v, hit.u, hit.v);
+        let obj = mesh.triangle(hit.prim as usize);
+        let corners = obj.map(|p| inst.world_from_object.transform_point3(p));
+        let p = corners[0] * bary.x + corners[1] * bary.y + corners[2] * bary.z;
+        let ng_raw = (inst.normal_from_object * triangle_normal(obj)).normalize_or_zero();
+        let front = ray.dir.dot(ng_raw) < 0.0;
+        let flip = if front { 1.0 } else { -1.0 };
+        let ng = ng_raw * flip;
+        let interp = |a: [Vec3; 3]| a[0] * bary.x + a[1] * bary.y + a[2] * bary.z;
+        let corner_normals = mesh.normals().map(|n| {
+            idx.map(|i| {
+                let w = (inst.normal_from_object * n[i as usize]).normalize_or_zero() * flip;
+                if w == Vec3::ZERO { ng } else { w }
+            })
+        });
+        let ns = corner_normals
+            .map(|n| interp(n).normalize_or_zero())
+            .filter(|n| *n != Vec3::ZERO)
+            .unwrap_or(ng);
+        let uv = mesh.uvs().map(|uv| {
+            let [a, b, c] = idx.map(|i| uv[i as usize]);
+            a * bary.x + b * bary.y + c * bary.z
+        });
+        let color = mesh.colors().map(|c| interp(idx.map(|i| c[i as usize])));
+        Surface {
+            p,
+            ng,
+            ns,
+            front,
+            bary,
+            corners,
+            corner_normals,
+            uv,
+            color,
+            material: inst.material,
+        }
+    }
+}
+
+/// The hit point lifted from the flat triangle onto the smooth surface its
+/// vertex normals describe, where the surface bulges out (Hanika, "Hacking
+/// the Shadow Terminator", Ray Tracing Gems II, ch. 4). Shadow rays start
+/// here so that facets do not shadow their neighbours where smooth shading
+/// says the surface is lit (black blotches near the terminator).
+fn smooth_point(surf: &Surface) -> Vec3 {
+    let Some(normals) = surf.corner_normals else {
+        return surf.p;
+    };
+    let mut lift = Vec3::ZERO;
+    for ((corner, normal), b) in surf.corners.into_iter().zip(normals).zip(surf.bary.to_array()) {
+        // How far p lies below the tangent plane at this corner (<= 0 only).
+        let below = (surf.p - corner).dot(normal).min(0.0);
+        lift -= b * below * normal;
+    }
+    let p = surf.p + lift;
+    if p.is_finite() { p } else { surf.p }
+}
+
+/// Mirror direction about the shading normal, or about the geometric normal
+/// when the shading normal would send the ray into the surface.
+fn mirror_dir(d: Vec3, surf: &Surface) -> Vec3 {
+    let r = reflect(d, surf.ns);
+    if r.dot(surf.ng) > 0.0 { r } else { reflect(d, surf.ng) }
+}
+
+#[cfg(test)]
+mod tests;
