@@ -6,13 +6,14 @@ use std::path::PathBuf;
 /// Why an asset could not be loaded or saved. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum AssetError {
-    /// The file could not be read or written.
-    #[error("{}: {source}", path.display())]
+    /// The file could not be read or written. (The OS error is part of the
+    /// message, not a separate `source`, so one-line reports do not repeat it.)
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
         /// What the OS said.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The file's contents are malformed.
     #[error("{}{}: {message}", path.display(), location.map_or(String::new(), |l| format!(":{l}")))]
@@ -26,7 +27,7 @@ pub enum AssetError {
     },
     /// A scene file is malformed, or something it refers to failed to load;
     /// located at the offending value in the scene file.
-    #[error("{0}")]
+    #[error(transparent)]
     Scene(#[from] lucent_scene::SceneFileError),
 }
 

@@ -81,9 +81,9 @@ pub fn save_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), 
         AssetError::Format { message, .. } => AssetError::format(path, message),
         other => other,
     })?;
-    std::fs::write(path, bytes).map_err(|source| AssetError::Io {
+    std::fs::write(path, bytes).map_err(|error| AssetError::Io {
         path: path.to_owned(),
-        source,
+        error,
     })
 }
 

@@ -20,9 +20,9 @@ impl AssetSource for FileSystem {
         if path.is_dir() {
             return Err(AssetError::format(path, "is a directory, not a file"));
         }
-        std::fs::read(path).map(Cow::Owned).map_err(|source| AssetError::Io {
+        std::fs::read(path).map(Cow::Owned).map_err(|error| AssetError::Io {
             path: path.to_owned(),
-            source,
+            error,
         })
     }
 }
@@ -54,7 +54,7 @@ impl AssetSource for MemorySource {
             .map(|b| Cow::Borrowed(*b))
             .ok_or_else(|| AssetError::Io {
                 path: path.to_owned(),
-                source: std::io::Error::new(std::io::ErrorKind::NotFound, "not among the built-in assets"),
+                error: std::io::Error::new(std::io::ErrorKind::NotFound, "not among the built-in assets"),
             })
     }
 }

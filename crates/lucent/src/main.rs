@@ -1,0 +1,154 @@
+//! `lucent`: the Lucent app. With no arguments it opens the interactive
+//! viewer on the built-in seed scene; `lucent render` renders a scene file
+//! to a PNG without a window.
+#![forbid(unsafe_code)]
+#![allow(clippy::print_stdout, reason = "a command-line program reports on stdout")]
+
+mod builtin;
+mod render_cmd;
+mod viewer;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use lucent_assets::LoadReport;
+use lucent_scene::{Scene, Shading};
+use std::path::Path;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "lucent",
+    version,
+    about = "A Whitted ray tracer over an ECS scene, with an interactive viewer."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Open the interactive viewer (the default when no command is given).
+    View(viewer::ViewArgs),
+    /// Render a scene to a PNG file, without a window.
+    Render(render_cmd::RenderArgs),
+}
+
+/// Settings shared by `view` and `render`, overriding the scene's `[render]`.
+#[derive(Args, Clone, Debug, Default)]
+struct QualityArgs {
+    /// Image size, WIDTHxHEIGHT (1 to 16384 each).
+    #[arg(long, value_name = "WxH", value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Recursion depth for reflection and refraction rays (0 to 64).
+    #[arg(long, value_name = "D", value_parser = clap::value_parser!(u32).range(0..=64))]
+    max_depth: Option<u32>,
+    /// Rays whose weight falls below this are not traced (0 to 1).
+    #[arg(long, value_name = "W", value_parser = parse_unit)]
+    min_weight: Option<f32>,
+    /// Evaluate lighting at the vertices (gouraud) or per pixel (phong).
+    #[arg(long, value_enum)]
+    shading: Option<ShadingArg>,
+    /// Seed of the per-pixel sample streams.
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ShadingArg {
+    Gouraud,
+    Phong,
+}
+
+impl QualityArgs {
+    fn apply(&self, scene: &mut Scene) {
+        let s = &mut scene.settings;
+        if let Some((w, h)) = self.size {
+            (s.width, s.height) = (w, h);
+        }
+        if let Some(d) = self.max_depth {
+            s.max_depth = d;
+        }
+        if let Some(w) = self.min_weight {
+            s.min_weight = w;
+        }
+        if let Some(sh) = self.shading {
+            s.shading = match sh {
+                ShadingArg::Gouraud => Shading::Gouraud,
+                ShadingArg::Phong => Shading::Phong,
+            };
+        }
+        if let Some(seed) = self.seed {
+            s.seed = seed;
+        }
+    }
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT, e.g. 640x360"))?;
+    let dim = |v: &str| match v.trim().parse::<u32>() {
+        Ok(n) if (1..=16384).contains(&n) => Ok(n),
+        _ => Err(format!("'{v}' is not a size from 1 to 16384")),
+    };
+    Ok((dim(w)?, dim(h)?))
+}
+
+fn parse_unit(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("'{s}' is not a number from 0 to 1")),
+    }
+}
+
+/// Loads a scene file, or the built-in seed scene when `path` is `None`.
+fn load_scene(path: Option<&Path>) -> Result<(Scene, LoadReport, String)> {
+    let (scene, report, name) = match path {
+        Some(p) => {
+            let (scene, report) = lucent_assets::load_scene(p)?;
+            (scene, report, p.display().to_string())
+        }
+        None => {
+            let (scene, report) = lucent_assets::load_scene_from(&builtin::source(), Path::new(builtin::SEED_SCENE))
+                .context("the built-in seed scene failed to load")?;
+            (scene, report, "built-in seed scene".to_owned())
+        }
+    };
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok((scene, report, name))
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        None => viewer::run(viewer::ViewArgs::default()),
+        Some(Command::View(args)) => viewer::run(args),
+        Some(Command::Render(args)) => render_cmd::run(args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the error and its causes.
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The output path must be a PNG file.
+fn check_png_path(path: &Path) -> Result<()> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if ext.as_deref() != Some("png") {
+        bail!(
+            "{}: only PNG output is supported (use a .png file name)",
+            path.display()
+        );
+    }
+    Ok(())
+}

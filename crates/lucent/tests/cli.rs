@@ -1,0 +1,177 @@
+//! End-to-end tests of the `lucent` binary: exit codes, one-line errors
+//! that name file, line and column, PNG output, and the viewer (in a real
+//! window when a display is available, e.g. under Xvfb in CI).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn lucent() -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
+    cmd.current_dir(repo_root());
+    cmd
+}
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Runs `lucent render` on a scene text and returns the error output, which
+/// must be one `error:` line with a non-zero exit code and no panic.
+fn render_error(name: &str, scene_text: &str) -> String {
+    let dir = scratch(name);
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, scene_text).unwrap();
+    let out = lucent()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.join("x.png"))
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| !l.starts_with("warning:")).collect();
+    assert_eq!(lines.len(), 1, "one error line expected: {err}");
+    assert!(!dir.join("x.png").exists(), "no output on error");
+    lines[0].replace(&dir.display().to_string(), "DIR")
+}
+
+#[test]
+fn renders_the_seed_scene_to_png() {
+    let dir = scratch("seed");
+    let png = dir.join("seed.png");
+    let out = lucent()
+        .args([
+            "render",
+            "res/scenes/seed.toml",
+            "--size",
+            "96x54",
+            "--spp",
+            "1",
+            "--threads",
+            "2",
+            "-o",
+        ])
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        summary.contains("96x54, 1 spp") && summary.contains("Mrays/s"),
+        "{summary}"
+    );
+    let tex = lucent_assets::texture_from_bytes(&std::fs::read(&png).unwrap(), &png).unwrap();
+    assert_eq!((tex.width(), tex.height()), (96, 54));
+}
+
+#[test]
+fn bad_toml_is_located() {
+    let err = render_error("bad_toml", "[camera]\nradius = 2.0\ntheta_deg = [\n");
+    assert!(err.starts_with("error: DIR/scene.toml:3:14: "), "{err}");
+}
+
+#[test]
+fn unknown_material_is_located() {
+    let text = "[materials.red]\nkd = 1\n\n[[objects]]\nshape = \"cube\"\nmaterial = \"blue\"\n";
+    let err = render_error("unknown_material", text);
+    assert_eq!(
+        err,
+        "error: DIR/scene.toml:6:12: unknown material 'blue' (defined: red)"
+    );
+}
+
+#[test]
+fn missing_mesh_file_is_located() {
+    let err = render_error("missing_mesh", "[[objects]]\nmesh = \"nowhere/bunny.ply\"\n");
+    assert!(
+        err.starts_with("error: DIR/scene.toml:2:8: cannot load mesh 'nowhere/bunny.ply': DIR/nowhere/bunny.ply: "),
+        "{err}"
+    );
+}
+
+#[test]
+fn missing_scene_file_and_bad_output_are_errors() {
+    let out = lucent()
+        .args(["render", "no/such/scene.toml", "-o", "/tmp/x.png"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).starts_with("error: no/such/scene.toml: "),
+        "{}",
+        stderr(&out)
+    );
+    let out = lucent()
+        .args(["render", "res/scenes/seed.toml", "-o", "x.jpg"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("only PNG output"), "{}", stderr(&out));
+    // Malformed flags are usage errors (exit code 2), caught by clap.
+    let out = lucent()
+        .args(["render", "res/scenes/seed.toml", "-o", "x.png", "--size", "0x10"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("not a size from 1 to 16384"), "{}", stderr(&out));
+}
+
+#[test]
+fn viewer_without_a_display_points_to_headless_rendering() {
+    let out = lucent()
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = stderr(&out);
+    assert!(err.contains("no display") && err.contains("lucent render"), "{err}");
+    assert!(!err.contains("panicked"));
+}
+
+#[test]
+fn help_lists_the_viewer_controls() {
+    let out = lucent().args(["view", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    for key in ["arrow keys", "mouse drag", "wheel", "Esc"] {
+        assert!(help.contains(key), "{help}");
+    }
+}
+
+#[test]
+fn viewer_opens_renders_and_saves_a_screenshot() {
+    if std::env::var_os("DISPLAY").is_none() {
+        eprintln!("skipped: no DISPLAY (CI runs this under Xvfb)");
+        return;
+    }
+    let dir = scratch("viewer");
+    let shot = dir.join("shot.png");
+    let out = lucent()
+        .args(["view", "--frames", "4", "--size", "160x90", "--screenshot"])
+        .arg(&shot)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let tex = lucent_assets::texture_from_bytes(&std::fs::read(&shot).unwrap(), &shot).unwrap();
+    assert_eq!((tex.width(), tex.height()), (160, 90));
+    // The seed scene fills much of the frame with lit objects and floor.
+    let bright = (0..90i64)
+        .flat_map(|y| (0..160i64).map(move |x| (x, y)))
+        .filter(|&(x, y)| tex.texel(x, y).max_element() > 0.1)
+        .count();
+    assert!(bright > 160 * 90 / 4, "only {bright} lit pixels");
+}
