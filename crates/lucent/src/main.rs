@@ -1,9 +1,10 @@
 //! `lucent`: the Lucent app. With no arguments it opens the interactive
 //! viewer on the built-in seed scene; `lucent render` renders a scene file
-//! to a PNG without a window.
+//! to a PNG without a window; `lucent bench` measures.
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a command-line program reports on stdout")]
 
+mod bench_cmd;
 mod builtin;
 mod render_cmd;
 mod viewer;
@@ -32,6 +33,8 @@ enum Command {
     View(viewer::ViewArgs),
     /// Render a scene to a PNG file, without a window.
     Render(render_cmd::RenderArgs),
+    /// Measure: repeated renders, median time, one JSON line.
+    Bench(bench_cmd::BenchArgs),
 }
 
 /// Settings shared by `view` and `render`, overriding the scene's `[render]`.
@@ -126,6 +129,7 @@ fn run(cli: Cli) -> Result<()> {
         None => viewer::run(viewer::ViewArgs::default()),
         Some(Command::View(args)) => viewer::run(args),
         Some(Command::Render(args)) => render_cmd::run(args),
+        Some(Command::Bench(args)) => bench_cmd::run(args),
     }
 }
 
