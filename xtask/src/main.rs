@@ -1,0 +1,191 @@
+//! `cargo xtask`: project tasks that are easier in Rust than in shell.
+//!
+//! - `ci`: format check, clippy with `-D warnings`, the test suite (under
+//!   Xvfb when there is no display but `xvfb-run` exists) and `tidy`;
+//! - `snap [--review | --accept]`: run the image snapshot tests and review
+//!   or accept what changed;
+//! - `tidy`: repository rules (also run as a test, see `tidy.rs`);
+//! - `render SCENE [--out FILE.png] [ARGS...]`: render with a release build.
+#![forbid(unsafe_code)]
+#![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
+
+mod tidy;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+
+const USAGE: &str = "usage: cargo xtask <command>
+
+commands:
+  ci                       fmt --check, clippy -D warnings, tests, tidy
+  snap [--review|--accept] run the snapshot tests; review (cargo-insta if
+                           installed) or accept new snapshots
+  tidy                     check repository rules
+  render SCENE [--out FILE.png] [lucent render options...]
+                           render with a release build (default out: target/render.png)";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let res = match args.first().map(String::as_str) {
+        Some("ci") => ci(),
+        Some("snap") => snap(&args[1..]),
+        Some("tidy") => tidy::check(&root()).map_err(|problems| problems.join("\n")),
+        Some("render") => render(&args[1..]),
+        Some("-h" | "--help" | "help") => {
+            println!("{USAGE}");
+            Ok(())
+        }
+        _ => Err(USAGE.to_owned()),
+    };
+    match res {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The workspace root (the parent of this crate).
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_owned)
+}
+
+fn cargo() -> Command {
+    let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned()));
+    cmd.current_dir(root());
+    cmd
+}
+
+fn run(cmd: &mut Command) -> Result<(), String> {
+    println!("$ {cmd:?}");
+    let status = cmd.status().map_err(|e| format!("cannot run {cmd:?}: {e}"))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{cmd:?} failed ({status})"))
+    }
+}
+
+fn has_program(name: &str) -> bool {
+    Command::new("sh")
+        .args(["-c", &format!("command -v {name} >/dev/null 2>&1")])
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+fn ci() -> Result<(), String> {
+    run(cargo().args(["fmt", "--all", "--", "--check"]))?;
+    run(cargo().args([
+        "clippy",
+        "--workspace",
+        "--all-targets",
+        "--locked",
+        "--",
+        "-D",
+        "warnings",
+    ]))?;
+    // Window tests need a display: use Xvfb when there is none.
+    let headless = std::env::var_os("DISPLAY").is_none();
+    if headless && has_program("xvfb-run") {
+        let cargo_bin = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+        let mut cmd = Command::new("xvfb-run");
+        cmd.current_dir(root())
+            .args(["-a", "-s", "-screen 0 1280x1024x24", &cargo_bin])
+            .args(["test", "--workspace", "--locked"]);
+        run(&mut cmd)?;
+    } else {
+        if headless {
+            println!("note: no DISPLAY and no xvfb-run: the window test will skip");
+        }
+        run(cargo().args(["test", "--workspace", "--locked"]))?;
+    }
+    tidy::check(&root()).map_err(|problems| problems.join("\n"))
+}
+
+fn pending_snapshots(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            pending_snapshots(&p, out);
+        } else if p.to_string_lossy().contains(".snap.new") {
+            out.push(p);
+        }
+    }
+}
+
+fn snap(args: &[String]) -> Result<(), String> {
+    let mode = args.first().map(String::as_str);
+    let snapshots = root().join("tests/tests/snapshots");
+    match mode {
+        Some("--accept") => {
+            // Overwrite every snapshot with what the code renders now.
+            run(cargo().env("INSTA_UPDATE", "always").env_remove("CI").args([
+                "test",
+                "--release",
+                "-p",
+                "lucent-tests",
+            ]))?;
+            println!("accepted; review the changes with `git diff --stat tests/tests/snapshots` before committing");
+            Ok(())
+        }
+        Some("--review") if has_program("cargo-insta") => {
+            run(cargo().args(["insta", "test", "--release", "-p", "lucent-tests", "--review"]))
+        }
+        None | Some("--review") => {
+            let res = run(cargo().env("INSTA_UPDATE", "new").env_remove("CI").args([
+                "test",
+                "--release",
+                "-p",
+                "lucent-tests",
+            ]));
+            let mut pending = Vec::new();
+            pending_snapshots(&snapshots, &mut pending);
+            pending.sort();
+            if pending.is_empty() {
+                return res;
+            }
+            println!("\nsnapshots that changed (compare each .snap.new with its .snap; PNGs open side by side):");
+            for p in &pending {
+                println!("  {}", p.display());
+            }
+            println!(
+                "accept them all with `cargo xtask snap --accept`, or install cargo-insta for an interactive review"
+            );
+            Err("snapshots changed".to_owned())
+        }
+        Some(other) => Err(format!("unknown snap option '{other}'\n{USAGE}")),
+    }
+}
+
+fn render(args: &[String]) -> Result<(), String> {
+    let Some(scene) = args.first() else {
+        return Err(format!("render needs a scene file\n{USAGE}"));
+    };
+    let mut rest: Vec<String> = args[1..].to_vec();
+    let out = match rest.iter().position(|a| a == "--out" || a == "-o") {
+        Some(i) if i + 1 < rest.len() => {
+            let out = rest.remove(i + 1);
+            rest.remove(i);
+            out
+        }
+        _ => root().join("target/render.png").display().to_string(),
+    };
+    run(cargo()
+        .args([
+            "run",
+            "--release",
+            "--quiet",
+            "-p",
+            "lucent",
+            "--",
+            "render",
+            scene,
+            "-o",
+            &out,
+        ])
+        .args(&rest))
+}
