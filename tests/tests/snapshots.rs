@@ -1,27 +1,25 @@
 //! Image and statistics snapshots of the seed scene with both shading modes,
 //! and a text snapshot of what the seed scene loads into.
 
-use lucent_render::{Shading, extract};
+use lucent_render::{Film, Shading, extract};
 use lucent_tests::{assert_image_snapshot, load_repo_scene, render_scene};
+
+/// The seed scene at 128x72, 2 samples per pixel, seed 1.
+fn seed_film(shading: Shading) -> Film {
+    let scene = load_repo_scene("res/scenes/seed.toml");
+    render_scene(&scene, |s| {
+        (s.width, s.height, s.spp, s.seed, s.shading) = (128, 72, 2, 1, shading);
+    })
+}
 
 #[test]
 fn seed_scene_gouraud() {
-    let scene = load_repo_scene("res/scenes/seed.toml");
-    let film = render_scene(&scene, |s| {
-        (s.width, s.height, s.spp, s.seed) = (128, 72, 2, 1);
-        s.shading = Shading::Gouraud;
-    });
-    assert_image_snapshot!("seed_gouraud", &film);
+    assert_image_snapshot!("seed_gouraud", &seed_film(Shading::Gouraud));
 }
 
 #[test]
 fn seed_scene_phong() {
-    let scene = load_repo_scene("res/scenes/seed.toml");
-    let film = render_scene(&scene, |s| {
-        (s.width, s.height, s.spp, s.seed) = (128, 72, 2, 1);
-        s.shading = Shading::Phong;
-    });
-    assert_image_snapshot!("seed_phong", &film);
+    assert_image_snapshot!("seed_phong", &seed_film(Shading::Phong));
 }
 
 #[test]

@@ -38,18 +38,14 @@ pub(crate) fn load_obj(
     };
     let (models, materials) = tobj::load_obj_buf(&mut Cursor::new(bytes.as_ref()), &options, load_mtl)
         .map_err(|e| AssetError::format(path, format!("cannot parse OBJ: {e}")))?;
-    let materials = match materials {
-        Ok(m) => m,
-        Err(e) => {
-            if bytes.windows(6).any(|w| w == b"mtllib") {
-                report.warn(
-                    path,
-                    format!("cannot load its MTL file ({e}); using the default material"),
-                );
-            }
-            Vec::new()
-        }
-    };
+    // tobj reports an error here only when an `mtllib` could not be loaded.
+    let materials = materials.unwrap_or_else(|e| {
+        report.warn(
+            path,
+            format!("cannot load its MTL file ({e}); using the default material"),
+        );
+        Vec::new()
+    });
     let mtl_dir = mtl_dir.into_inner().unwrap_or(dir);
     let mut textures = HashMap::new();
     let materials: Vec<Material> = materials

@@ -127,30 +127,18 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
     let mut instance_names = Vec::with_capacity(rows.len());
     let mut bvh_instances = Vec::with_capacity(rows.len());
     for (entity, mesh_e, material_e, name) in rows {
-        let mesh = match mesh_index.get(&mesh_e) {
-            Some(&i) => i,
-            None => {
-                let m = world
-                    .get::<&Mesh>(mesh_e)
-                    .map_err(|_| ExtractError::DanglingMesh { instance: name.clone() })?;
-                meshes.push(m.0.clone());
-                let i = (meshes.len() - 1) as u32;
-                mesh_index.insert(mesh_e, i);
-                i
-            }
-        };
-        let material = match material_index.get(&material_e) {
-            Some(&i) => i,
-            None => {
-                let m = world
-                    .get::<&Material>(material_e)
-                    .map_err(|_| ExtractError::DanglingMaterial { instance: name.clone() })?;
-                materials.push((*m).clone());
-                let i = (materials.len() - 1) as u32;
-                material_index.insert(material_e, i);
-                i
-            }
-        };
+        let mesh = intern(&mut mesh_index, &mut meshes, mesh_e, || {
+            world
+                .get::<&Mesh>(mesh_e)
+                .map(|m| m.0.clone())
+                .map_err(|_| ExtractError::DanglingMesh { instance: name.clone() })
+        })?;
+        let material = intern(&mut material_index, &mut materials, material_e, || {
+            world
+                .get::<&Material>(material_e)
+                .map(|m| (*m).clone())
+                .map_err(|_| ExtractError::DanglingMaterial { instance: name.clone() })
+        })?;
         let world_from_object = world_from_local(world, entity);
         let bvh_instance = Instance::new(world_from_object, mesh)
             .ok_or_else(|| ExtractError::SingularTransform { instance: name.clone() })?;
@@ -194,6 +182,23 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         bvh,
         features,
     })
+}
+
+/// The index of `entity`'s item in `items`, fetching and appending it the
+/// first time it is seen, so items shared by several instances are stored once.
+fn intern<T>(
+    index: &mut HashMap<Entity, u32>,
+    items: &mut Vec<T>,
+    entity: Entity,
+    fetch: impl FnOnce() -> Result<T, ExtractError>,
+) -> Result<u32, ExtractError> {
+    if let Some(&i) = index.get(&entity) {
+        return Ok(i);
+    }
+    items.push(fetch()?);
+    let i = (items.len() - 1) as u32;
+    index.insert(entity, i);
+    Ok(i)
 }
 
 impl RenderScene {

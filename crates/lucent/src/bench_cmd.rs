@@ -5,7 +5,7 @@
 //! build timed separately), so figures can be quoted as medians on a noisy
 //! machine.
 
-use crate::{QualityArgs, load_scene};
+use crate::{QualityArgs, prepare_scene};
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use lucent_render::{current_threads, extract, render, with_threads};
@@ -49,13 +49,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
 }
 
 fn bench_render(args: RenderBenchArgs) -> Result<()> {
-    let t_load = Instant::now();
-    let (mut scene, _report, name) = load_scene(args.scene.as_deref())?;
-    let load_s = t_load.elapsed().as_secs_f64();
-    args.quality.apply(&mut scene);
-    if let Some(spp) = args.spp {
-        scene.settings.spp = spp;
-    }
+    let (scene, name, load_s) = prepare_scene(args.scene.as_deref(), &args.quality, args.spp)?;
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
     let json = with_threads(threads, || -> Result<String> {

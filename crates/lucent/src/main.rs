@@ -105,6 +105,19 @@ fn parse_unit(s: &str) -> Result<f32, String> {
     }
 }
 
+/// Loads a scene (see [`load_scene`]) and applies command-line overrides;
+/// returns it with its display name and the load time in seconds.
+fn prepare_scene(path: Option<&Path>, quality: &QualityArgs, spp: Option<u32>) -> Result<(Scene, String, f64)> {
+    let start = std::time::Instant::now();
+    let (mut scene, _report, name) = load_scene(path)?;
+    let load_s = start.elapsed().as_secs_f64();
+    quality.apply(&mut scene);
+    if let Some(spp) = spp {
+        scene.settings.spp = spp;
+    }
+    Ok((scene, name, load_s))
+}
+
 /// Loads a scene file, or the built-in seed scene when `path` is `None`.
 fn load_scene(path: Option<&Path>) -> Result<(Scene, LoadReport, String)> {
     let (scene, report, name) = match path {

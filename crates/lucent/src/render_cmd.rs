@@ -1,6 +1,6 @@
 //! `lucent render`: headless rendering to a PNG file.
 
-use crate::{QualityArgs, check_png_path, load_scene};
+use crate::{QualityArgs, check_png_path, prepare_scene};
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -28,13 +28,7 @@ pub struct RenderArgs {
 
 pub fn run(args: RenderArgs) -> Result<()> {
     check_png_path(&args.output)?;
-    let t_load = Instant::now();
-    let (mut scene, _report, _name) = load_scene(Some(&args.scene))?;
-    args.quality.apply(&mut scene);
-    if let Some(spp) = args.spp {
-        scene.settings.spp = spp;
-    }
-    let load_s = t_load.elapsed().as_secs_f64();
+    let (scene, _name, load_s) = prepare_scene(Some(&args.scene), &args.quality, args.spp)?;
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
     let (rs, build_s, out, n_threads) = with_threads(threads, || -> Result<_> {
