@@ -34,6 +34,9 @@ mod ply;
 mod scene_load;
 mod source;
 
+#[cfg(test)]
+mod hostile_tests;
+
 pub use error::{AssetError, LoadReport};
 pub use image_io::{encode_png, load_texture, save_png, texture_from_bytes};
 pub use mesh::{MeshPart, load_mesh, load_mesh_from};

@@ -12,7 +12,7 @@ use crate::image_io::srgb_to_linear;
 use crate::{AssetError, AssetSource, LoadReport, MeshPart};
 use lucent_geom::{TriMesh, Vec2, Vec3};
 use ply_rs::parser::Parser;
-use ply_rs::ply::{ElementDef, Encoding, Header, Property, PropertyAccess};
+use ply_rs::ply::{ElementDef, Encoding, Header, Property, PropertyAccess, PropertyType, ScalarType};
 use std::io::{BufRead, Cursor};
 use std::path::Path;
 
@@ -121,14 +121,18 @@ fn has_any(def: &ElementDef, groups: &[&[&str]]) -> bool {
 
 pub(crate) fn load_ply(source: &dyn AssetSource, path: &Path, report: &mut LoadReport) -> Result<MeshPart, AssetError> {
     let bytes = source.read(path)?;
+    check_header_text(&bytes).map_err(|(line, message)| AssetError::Format {
+        path: path.to_owned(),
+        location: Some(line),
+        message,
+    })?;
     let mut reader = Cursor::new(bytes.as_ref());
     let header = Parser::<Skip>::new()
         .read_header(&mut reader)
         .map_err(|e| AssetError::format(path, format!("bad PLY header: {}", one_line(&e.to_string()))))?;
-    let header_lines = bytes[..reader.position() as usize]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count();
+    let header_len = reader.position() as usize;
+    check_counts_fit(&header, bytes.len() - header_len).map_err(|message| AssetError::format(path, message))?;
+    let header_lines = bytes[..header_len].iter().filter(|&&b| b == b'\n').count();
     let mut vertices: Option<(Vec<PlyVertex>, &ElementDef)> = None;
     let mut faces: Vec<PlyFace> = Vec::new();
     let mut lines_before = header_lines;
@@ -214,6 +218,90 @@ pub(crate) fn load_ply(source: &dyn AssetSource, path: &Path, report: &mut LoadR
         mesh,
         material: None,
     })
+}
+
+/// Checks what ply-rs's header parser does not: every digit run must fit a
+/// `u64` (its grammar unwraps the parse, so a larger number would panic),
+/// element names must be unique (it keeps only the last declaration) and
+/// every element needs a property (an empty one would make it materialise
+/// `count` records from no data). Returns `(line, message)` for the first
+/// problem.
+fn check_header_text(bytes: &[u8]) -> Result<(), (usize, String)> {
+    let mut names: Vec<String> = Vec::new();
+    let mut open_element: Option<(usize, String)> = None;
+    for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        for run in line.split(|b| !b.is_ascii_digit()).filter(|r| !r.is_empty()) {
+            let digits = String::from_utf8_lossy(run);
+            if digits.parse::<u64>().is_err() {
+                return Err((i + 1, format!("number {digits} in the header is too large")));
+            }
+        }
+        let text = String::from_utf8_lossy(line);
+        let mut words = text.split_whitespace();
+        match words.next() {
+            Some("element") | Some("end_header") => {
+                if let Some((at, name)) = open_element.take() {
+                    return Err((at, format!("element '{name}' has no properties")));
+                }
+                if let Some(name) = words.next().filter(|_| text.starts_with("element")) {
+                    if names.iter().any(|n| n == name) {
+                        return Err((i + 1, format!("element '{name}' is declared twice")));
+                    }
+                    names.push(name.to_owned());
+                    open_element = Some((i + 1, name.to_owned()));
+                }
+            }
+            Some("property") => open_element = None,
+            _ => {}
+        }
+        if line.starts_with(b"end_header") {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Fails when the elements' counts cannot fit in the bytes after the
+/// header (each ASCII element takes at least two bytes, a value and a line
+/// break; each binary one at least the sum of its scalar sizes), so absurd
+/// counts are refused before anything is read or allocated.
+fn check_counts_fit(header: &Header, payload_len: usize) -> Result<(), String> {
+    let mut needed: u128 = 0;
+    for def in header.elements.values() {
+        let per_element: u128 = match header.encoding {
+            Encoding::Ascii => 2,
+            _ => def
+                .properties
+                .values()
+                .map(|p| match &p.data_type {
+                    PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
+                })
+                .sum(),
+        };
+        let element_bytes = per_element * def.count as u128;
+        if element_bytes > payload_len as u128 {
+            return Err(format!(
+                "element '{}' claims {} entries, which need at least {element_bytes} bytes, but only {payload_len} follow the header",
+                def.name, def.count
+            ));
+        }
+        needed += element_bytes;
+    }
+    if needed > payload_len as u128 {
+        return Err(format!(
+            "the elements need at least {needed} bytes, but only {payload_len} follow the header"
+        ));
+    }
+    Ok(())
+}
+
+fn scalar_size(t: &ScalarType) -> u128 {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
 }
 
 fn skip_element<R: BufRead>(reader: &mut R, def: &ElementDef, header: &Header) -> std::io::Result<()> {
@@ -314,6 +402,27 @@ element face 1\nproperty list uchar uint vertex_index\nend_header\n"
         let truncated = &ASCII[..ASCII.len() - 12];
         let err = load(truncated).map(|_| ()).unwrap_err();
         assert!(err.starts_with("t.ply:"), "{err}");
+        // Counts that cannot fit the file fail before anything is read.
+        let huge = b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nend_header\n";
+        assert_eq!(
+            load(huge).map(|_| ()),
+            Err("t.ply: element 'vertex' claims 4000000000 entries, which need at least 16000000000 bytes, but only 0 follow the header".into())
+        );
+        let twice = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nelement vertex 9\nend_header\n";
+        assert_eq!(
+            load(twice).map(|_| ()),
+            Err("t.ply:5: element 'vertex' is declared twice".into())
+        );
+        let empty = b"ply\nformat ascii 1.0\nelement vertex 4000000000\nelement face 0\nend_header\n";
+        assert_eq!(
+            load(empty).map(|_| ()),
+            Err("t.ply:3: element 'vertex' has no properties".into())
+        );
+        let overflow = b"ply\nformat ascii 1.0\nelement vertex 99999999999999999999\nend_header\n";
+        assert_eq!(
+            load(overflow).map(|_| ()),
+            Err("t.ply:3: number 99999999999999999999 in the header is too large".into())
+        );
         assert!(load(b"ply\nformat ascii 9.0\nend_header\n").is_err());
         assert!(load(b"not a ply").is_err());
     }

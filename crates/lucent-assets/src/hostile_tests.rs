@@ -1,0 +1,100 @@
+//! Hostile input: mutated and truncated files never make a loader panic or
+//! allocate without bound. Each case flips, cuts or splices bytes (huge and
+//! negative counts and indices, NaN, stray separators) into small valid OBJ,
+//! MTL, PLY (ASCII and binary) and scene files. The suite runs 3000 cases;
+//! a run of 1,000,000 under a 3 GB address-space limit found the tobj and
+//! ply-rs failures that `obj.rs` and `ply.rs` now guard against.
+
+use crate::{MemorySource, load_mesh_from, load_scene_from};
+use lucent_geom::Pcg32;
+use std::path::Path;
+
+const OBJ: &[u8] = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0 0.5 0.5 0.5\nvt 0 0\nvt 1 1\nvn 0 0 1\n\
+usemtl a\nf 1/1/1 2/2/1 3/1/1 4/2/1\nf -1 -2 -3\ng part\nf 1 3 4\n";
+const MTL: &[u8] = b"newmtl a\nKa 0.1 0.2 0.3\nKd 1 1 1\nKs 0.5 0.5 0.5\nNs 10\nd 0.5\nNi 1.5\nillum 3\nmap_Kd t.png\n";
+const PLY: &[u8] = b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 2\nproperty list uchar int vertex_indices\n\
+end_header\n0 0 0 1 2 3\n1 0 0 4 5 6\n1 1 0 7 8 9\n0 1 0 1 1 1\n3 0 1 2\n4 0 1 2 3\n";
+const SCENE: &[u8] = b"[render]\nwidth = 8\nheight = 8\n[camera]\nradius = 3\n[[lights]]\ntype = \"directional\"\n\
+to_light = [0, 1, 0]\n[materials.m]\nkd = [1, 0, 0]\n[[objects]]\nmesh = \"a.ply\"\nmaterial = \"m\"\nscale = 2\n\
+[[objects]]\nshape = \"sphere\"\nsubdivisions = 1\n";
+
+fn binary_ply() -> Vec<u8> {
+    let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n"
+        .to_vec();
+    for v in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
+        b.extend(v.to_le_bytes());
+    }
+    b.push(3);
+    for i in [0u32, 1, 2] {
+        b.extend(i.to_le_bytes());
+    }
+    b
+}
+
+/// Tokens that stress parsers: huge and negative counts and indices, NaN.
+const NASTY: &[&[u8]] = &[
+    b"4294967295",
+    b"-2147483648",
+    b"99999999999999999999",
+    b"nan",
+    b"inf",
+    b"-1",
+    b"0",
+    b"\n",
+    b" ",
+    b"/",
+    b"#",
+    b"\xff\xfe",
+    b"1e39",
+    b"element vertex 4000000000\n",
+];
+
+fn mutate(rng: &mut Pcg32, base: &[u8]) -> Vec<u8> {
+    let mut b = base.to_vec();
+    for _ in 0..1 + rng.next_u32() % 4 {
+        let at = if b.is_empty() {
+            0
+        } else {
+            rng.next_u32() as usize % b.len()
+        };
+        match rng.next_u32() % 4 {
+            0 => b.truncate(at),
+            1 if !b.is_empty() => b[at] = rng.next_u32() as u8,
+            2 => {
+                let tok = NASTY[rng.next_u32() as usize % NASTY.len()];
+                b.splice(at..at, tok.iter().copied());
+            }
+            _ => {
+                let len = (rng.next_u32() % 8) as usize;
+                b.drain(at..(at + len).min(b.len()));
+            }
+        }
+    }
+    b
+}
+
+#[test]
+fn mutated_meshes_and_scenes_never_panic() {
+    let bin = binary_ply();
+    let mut rng = Pcg32::new(2026, 11);
+    for _ in 0..3000 {
+        let obj: &'static [u8] = mutate(&mut rng, OBJ).leak();
+        let mtl: &'static [u8] = mutate(&mut rng, MTL).leak();
+        let ply: &'static [u8] = mutate(&mut rng, PLY).leak();
+        let bply: &'static [u8] = mutate(&mut rng, &bin).leak();
+        let scene: &'static [u8] = mutate(&mut rng, SCENE).leak();
+        let src = MemorySource::new()
+            .with_file("m.obj", obj)
+            .with_file("m.mtl", mtl)
+            .with_file("a.ply", ply)
+            .with_file("b.ply", bply)
+            .with_file("s.toml", scene);
+        // Results may be Ok or Err; reaching the next line means no panic.
+        let _ = load_mesh_from(&src, Path::new("m.obj"));
+        let _ = load_mesh_from(&src, Path::new("a.ply"));
+        let _ = load_mesh_from(&src, Path::new("b.ply"));
+        let _ = load_scene_from(&src, Path::new("s.toml"));
+    }
+}
