@@ -2,6 +2,7 @@
 
 use crate::{AssetError, AssetSource};
 use image::{DynamicImage, ImageFormat};
+use lucent_shading::color::srgb_to_linear;
 use lucent_shading::{Texture, Vec3};
 use std::io::Cursor;
 use std::path::Path;
@@ -45,15 +46,6 @@ pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetErr
             .collect(),
     };
     Texture::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))
-}
-
-/// The sRGB electro-optical transfer function: encoded value to linear.
-pub(crate) fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 fn srgb_lut() -> &'static [f32; 256] {

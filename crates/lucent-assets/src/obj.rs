@@ -4,9 +4,9 @@
 //! vertex (vertices on UV seams are split), and MTL materials and their
 //! diffuse textures are loaded through the same [`AssetSource`].
 
-use crate::image_io::srgb_to_linear;
 use crate::{AssetError, AssetSource, LoadReport, MeshPart, load_texture, normalize_path};
 use lucent_geom::{TriMesh, Vec2, Vec3};
+use lucent_shading::color::srgb_to_linear;
 use lucent_shading::{Material, Texture};
 use std::cell::RefCell;
 use std::collections::HashMap;

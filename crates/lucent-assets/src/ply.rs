@@ -8,9 +8,9 @@
 //! of any integer type; polygons are fan-triangulated in file order. Other
 //! elements and properties are read past and ignored.
 
-use crate::image_io::srgb_to_linear;
 use crate::{AssetError, AssetSource, LoadReport, MeshPart};
 use lucent_geom::{TriMesh, Vec2, Vec3};
+use lucent_shading::color::srgb_to_linear;
 use ply_rs::parser::Parser;
 use ply_rs::ply::{ElementDef, Encoding, Header, Property, PropertyAccess, PropertyType, ScalarType};
 use std::io::{BufRead, Cursor};
@@ -264,7 +264,8 @@ fn check_header_text(bytes: &[u8]) -> Result<(), (usize, String)> {
 /// Fails when the elements' counts cannot fit in the bytes after the
 /// header (each ASCII element takes at least two bytes, a value and a line
 /// break; each binary one at least the sum of its scalar sizes), so absurd
-/// counts are refused before anything is read or allocated.
+/// counts are refused before anything is read or allocated. Names the first
+/// element that runs past the end.
 fn check_counts_fit(header: &Header, payload_len: usize) -> Result<(), String> {
     let mut needed: u128 = 0;
     for def in header.elements.values() {
@@ -279,18 +280,15 @@ fn check_counts_fit(header: &Header, payload_len: usize) -> Result<(), String> {
                 .sum(),
         };
         let element_bytes = per_element * def.count as u128;
-        if element_bytes > payload_len as u128 {
+        let remaining = (payload_len as u128).saturating_sub(needed);
+        if element_bytes > remaining {
+            let after = if needed > 0 { " and the elements before it" } else { "" };
             return Err(format!(
-                "element '{}' claims {} entries, which need at least {element_bytes} bytes, but only {payload_len} follow the header",
+                "element '{}' claims {} entries, which need at least {element_bytes} bytes, but only {remaining} follow the header{after}",
                 def.name, def.count
             ));
         }
         needed += element_bytes;
-    }
-    if needed > payload_len as u128 {
-        return Err(format!(
-            "the elements need at least {needed} bytes, but only {payload_len} follow the header"
-        ));
     }
     Ok(())
 }

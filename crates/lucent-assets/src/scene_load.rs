@@ -2,11 +2,10 @@
 
 use crate::{AssetError, AssetSource, FileSystem, LoadReport, load_mesh_from, load_texture, normalize_path};
 use lucent_geom::{Aabb, shapes};
-use lucent_scene::components::{Camera, Light, Material, Mesh, OrbitRig, Texture};
-use lucent_scene::hecs::Entity;
+use lucent_scene::components::{Camera, Light, Material, Mesh, MeshRef, OrbitRig, Texture};
+use lucent_scene::hecs::{Entity, World};
 use lucent_scene::{
-    CameraDesc, LightDesc, MaterialDesc, ObjectDesc, RenderSettings, Scene, SceneFile, ShapeKind,
-    update_global_transforms,
+    CameraDesc, LightDesc, MaterialDesc, ObjectDesc, RenderSettings, Scene, SceneFile, ShapeKind, world_from_local,
 };
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -48,8 +47,7 @@ pub fn load_scene_from(source: &dyn AssetSource, path: &Path) -> Result<(Scene, 
     loader.spawn_objects()?;
     loader.spawn_lights();
     loader.spawn_camera();
-    let Loader { mut scene, report, .. } = loader;
-    update_global_transforms(&mut scene.world);
+    let Loader { scene, report, .. } = loader;
     Ok((scene, report))
 }
 
@@ -246,7 +244,7 @@ impl Loader<'_> {
             phi_deg: 90.0,
             fov_y_deg: 60.0,
         });
-        let bounds = self.world_bounds();
+        let bounds = world_bounds(&self.scene.world);
         let (center, fit_radius) = if bounds.is_empty() {
             (lucent_geom::Vec3::ZERO, 3.0)
         } else {
@@ -266,15 +264,15 @@ impl Loader<'_> {
         };
         self.scene.add_camera("camera", camera, rig);
     }
+}
 
-    fn world_bounds(&self) -> Aabb {
-        let world = &self.scene.world;
-        let mut q = world.query::<(&lucent_scene::components::Transform, &lucent_scene::components::MeshRef)>();
-        q.iter().fold(Aabb::EMPTY, |b, (t, m)| {
-            let mesh_bounds = world.get::<&Mesh>(m.0).map_or(Aabb::EMPTY, |mesh| mesh.0.bounds());
-            b.union(mesh_bounds.transformed(&t.0))
-        })
-    }
+/// World-space bounds of every instance, parents included.
+fn world_bounds(world: &World) -> Aabb {
+    let mut q = world.query::<(Entity, &MeshRef)>();
+    q.iter().fold(Aabb::EMPTY, |b, (e, m)| {
+        let mesh_bounds = world.get::<&Mesh>(m.0).map_or(Aabb::EMPTY, |mesh| mesh.0.bounds());
+        b.union(mesh_bounds.transformed(&world_from_local(world, e)))
+    })
 }
 
 fn default_name(o: &ObjectDesc) -> String {

@@ -202,6 +202,24 @@ mod tests {
     }
 
     #[test]
+    fn update_scene_moves_the_active_camera_only() {
+        use lucent_scene::components::Camera;
+        let mut scene = Scene::default();
+        let ctl = OrbitController::new(rig());
+        let zoom = NavInput {
+            zoom: 1.0,
+            ..NavInput::default()
+        };
+        assert!(!ctl.update_scene(&mut scene, &zoom), "no camera: nothing to move");
+        let active = scene.add_camera("a", Camera::default(), rig());
+        let other = scene.add_camera("b", Camera::default(), rig());
+        assert!(ctl.update_scene(&mut scene, &zoom));
+        let radius = |e| scene.world.get::<&OrbitRig>(e).map(|r| r.radius).unwrap_or_default();
+        assert!((radius(active) - 1.8).abs() < 1e-6);
+        assert_eq!(radius(other), 2.0);
+    }
+
+    #[test]
     fn reset_returns_home_and_idle_input_changes_nothing() {
         let ctl = OrbitController::new(rig());
         let mut r = OrbitRig { radius: 7.0, ..rig() };

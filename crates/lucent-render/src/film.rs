@@ -1,6 +1,7 @@
 //! The film: per-pixel radiance sums, and conversion to 8-bit sRGB.
 
 use lucent_geom::{DVec3, Vec3};
+use lucent_shading::color::linear_to_srgb;
 use std::fmt;
 
 /// Accumulated linear radiance for every pixel, row 0 at the top.
@@ -122,17 +123,6 @@ pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
-/// The sRGB opto-electronic transfer function of a linear value clamped to
-/// [0, 1] (NaN maps to 0).
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
-    if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
 /// What a snapshot test records about an image.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ImageStats {
@@ -167,15 +157,6 @@ impl fmt::Display for ImageStats {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn srgb_curve_endpoints_and_midpoint() {
-        assert_eq!(linear_to_srgb(0.0), 0.0);
-        assert!((linear_to_srgb(1.0) - 1.0).abs() < 1e-6);
-        assert!((linear_to_srgb(0.2158605) - 128.0 / 255.0).abs() < 1e-4);
-        assert_eq!(linear_to_srgb(f32::NAN), 0.0);
-        assert_eq!(linear_to_srgb(7.0), linear_to_srgb(1.0));
-    }
 
     #[test]
     fn film_averages_samples_and_counts_nan() {

@@ -39,6 +39,6 @@ pub mod whitted;
 
 pub use camera::PinholeCamera;
 pub use extract::{ExtractError, RenderInstance, RenderScene, SceneFeatures, extract};
-pub use film::{Film, ImageStats, linear_to_srgb};
+pub use film::{Film, ImageStats};
 pub use lucent_scene::{RenderSettings, Shading};
 pub use render::{RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, with_threads};

@@ -230,12 +230,11 @@ impl<'a> Whitted<'a> {
         let bary = Vec3::new(1.0 - hit.u - hit.v, hit.u, hit.v);
         let obj = mesh.triangle(hit.prim as usize);
         let corners = obj.map(|p| inst.world_from_object.transform_point3(p));
-        let p = corners[0] * bary.x + corners[1] * bary.y + corners[2] * bary.z;
+        let p = barycentric(corners, bary);
         let ng_raw = (inst.normal_from_object * triangle_normal(obj)).normalize_or_zero();
         let front = ray.dir.dot(ng_raw) < 0.0;
         let flip = if front { 1.0 } else { -1.0 };
         let ng = ng_raw * flip;
-        let interp = |a: [Vec3; 3]| a[0] * bary.x + a[1] * bary.y + a[2] * bary.z;
         let corner_normals = mesh.normals().map(|n| {
             idx.map(|i| {
                 let w = (inst.normal_from_object * n[i as usize]).normalize_or_zero() * flip;
@@ -243,14 +242,11 @@ impl<'a> Whitted<'a> {
             })
         });
         let ns = corner_normals
-            .map(|n| interp(n).normalize_or_zero())
+            .map(|n| barycentric(n, bary).normalize_or_zero())
             .filter(|n| *n != Vec3::ZERO)
             .unwrap_or(ng);
-        let uv = mesh.uvs().map(|uv| {
-            let [a, b, c] = idx.map(|i| uv[i as usize]);
-            a * bary.x + b * bary.y + c * bary.z
-        });
-        let color = mesh.colors().map(|c| interp(idx.map(|i| c[i as usize])));
+        let uv = mesh.uvs().map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary));
+        let color = mesh.colors().map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
         Surface {
             p,
             ng,
@@ -264,6 +260,16 @@ impl<'a> Whitted<'a> {
             material: inst.material,
         }
     }
+}
+
+/// `w a + u b + v c` for corner values `[a, b, c]` and barycentrics
+/// `(w, u, v)`.
+#[inline]
+fn barycentric<T>([a, b, c]: [T; 3], bary: Vec3) -> T
+where
+    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
+    a * bary.x + b * bary.y + c * bary.z
 }
 
 /// The hit point lifted from the flat triangle onto the smooth surface its

@@ -19,11 +19,6 @@ pub struct Mesh(pub Arc<TriMesh>);
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Transform(pub Affine3A);
 
-/// World-from-object transform, computed by
-/// [`update_global_transforms`](crate::update_global_transforms).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GlobalTransform(pub Affine3A);
-
 /// The mesh entity an instance draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MeshRef(pub Entity);

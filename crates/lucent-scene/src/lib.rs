@@ -3,13 +3,13 @@
 //!
 //! This crate owns hecs (re-exported as [`hecs`]); no other library crate
 //! lists it. Components are plain data, and systems are plain functions
-//! taking `&mut World` ([`update_global_transforms`]).
+//! taking `&World` or `&mut World` ([`world_from_local`]).
 //!
 //! The entity model (components in [`components`]):
 //! - mesh: `(Name, Mesh)`, shared by every instance that refers to it;
 //! - material: `(Name, Material)`;
 //! - instance: `(Name, Transform, MeshRef, MaterialRef)` and optionally
-//!   `Parent`; [`update_global_transforms`] fills `GlobalTransform`;
+//!   `Parent`; [`world_from_local`] composes the transforms;
 //! - light: `(Name, Light)`, in world space;
 //! - camera: `(Name, Camera, OrbitRig)`; the rig gives the pose (S2).
 //!
@@ -46,4 +46,4 @@ pub use file::{
 };
 pub use hecs;
 pub use scene::{EntityCounts, Environment, RenderSettings, Scene, Shading};
-pub use transform::{update_global_transforms, world_from_local};
+pub use transform::world_from_local;

@@ -9,6 +9,7 @@
 //!   point lights.
 //! - [`phong`]: the report's Phong model (S9) split into per-light terms so
 //!   that it can be evaluated at vertices (Gouraud, S10) or per pixel.
+//! - [`color`]: the sRGB transfer function, both ways.
 //! - [`optics`]: mirror reflection and Snell refraction with total internal
 //!   reflection.
 //!
@@ -24,6 +25,7 @@
 //! ```
 #![forbid(unsafe_code)]
 
+pub mod color;
 mod light;
 mod material;
 pub mod optics;

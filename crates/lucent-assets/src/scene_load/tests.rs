@@ -101,3 +101,19 @@ fn non_utf8_scene_is_an_error_with_a_line() {
         .map_err(|e| e.to_string());
     assert_eq!(err, Err("s.toml:2: the scene file is not valid UTF-8 text".to_owned()));
 }
+
+#[test]
+fn framing_bounds_follow_parent_transforms() {
+    use lucent_geom::{Affine3A, Vec3};
+    use lucent_scene::components::{Parent, Transform};
+    let mut scene = Scene::default();
+    let cube = scene.add_mesh("cube", shapes::cuboid());
+    let mat = scene.add_material("m", Material::default());
+    let parent = scene
+        .world
+        .spawn((Transform(Affine3A::from_translation(Vec3::new(10.0, 0.0, 0.0))),));
+    let child = scene.add_instance("child", cube, mat, Affine3A::IDENTITY);
+    let _ = scene.world.insert_one(child, Parent(parent));
+    let b = world_bounds(&scene.world);
+    assert_eq!(b.center(), Vec3::new(10.0, 0.0, 0.0));
+}
