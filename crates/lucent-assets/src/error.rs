@@ -16,12 +16,12 @@ pub enum AssetError {
         error: std::io::Error,
     },
     /// The file's contents are malformed.
-    #[error("{}{}: {message}", path.display(), location.map_or(String::new(), |l| format!(":{l}")))]
+    #[error("{}{}: {message}", path.display(), location.map_or(String::new(), |l| l.to_string()))]
     Format {
         /// The file.
         path: PathBuf,
-        /// Line number (text formats), when known.
-        location: Option<usize>,
+        /// Where in the file, when known.
+        location: Option<Location>,
         /// What is wrong.
         message: String,
     },
@@ -31,7 +31,34 @@ pub enum AssetError {
     Scene(#[from] lucent_scene::SceneFileError),
 }
 
+/// A place in a file: a line of a text format or a byte offset of a binary
+/// one. Displayed as the suffix of `file:line` or `file@byte` respectively.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Location {
+    /// Line number, from 1.
+    Line(usize),
+    /// Byte offset from the start of the file, from 0.
+    Byte(u64),
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(line) => write!(f, ":{line}"),
+            Location::Byte(offset) => write!(f, ": byte {offset}"),
+        }
+    }
+}
+
 impl AssetError {
+    pub(crate) fn at(path: impl Into<PathBuf>, location: Location, message: impl Into<String>) -> Self {
+        AssetError::Format {
+            path: path.into(),
+            location: Some(location),
+            message: message.into(),
+        }
+    }
+
     pub(crate) fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         AssetError::Format {
             path: path.into(),

@@ -98,3 +98,62 @@ fn mutated_meshes_and_scenes_never_panic() {
         let _ = load_scene_from(&src, Path::new("s.toml"));
     }
 }
+
+#[test]
+fn random_bytes_and_hostile_headers_are_errors_not_panics() {
+    let mut rng = Pcg32::new(7, 3);
+    let prefixes: [&[u8]; 5] = [
+        b"",
+        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+element face 1\nproperty list uchar int vertex_indices\nend_header\n",
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n\
+property double z\nelement face 2\nproperty list uint uint vertex_index\nend_header\n",
+        b"ply\nformat binary_big_endian 1.0\nelement face 2\nproperty list int short vertex_indices\n\
+element vertex 3\nproperty uchar x\nproperty uchar y\nproperty uchar z\nend_header\n",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf ",
+    ];
+    for case in 0..2000 {
+        let prefix = prefixes[case % prefixes.len()];
+        let mut bytes = prefix.to_vec();
+        let len = rng.next_u32() % 200;
+        bytes.extend((0..len).map(|_| rng.next_u32() as u8));
+        let bytes: &'static [u8] = bytes.leak();
+        let src = MemorySource::new().with_file("r.ply", bytes).with_file("r.obj", bytes);
+        let ply = load_mesh_from(&src, Path::new("r.ply"));
+        let obj = load_mesh_from(&src, Path::new("r.obj"));
+        // Errors must name the file.
+        for e in [ply.err(), obj.err()].into_iter().flatten() {
+            let e = e.to_string();
+            assert!(e.starts_with("r.ply") || e.starts_with("r.obj"), "{e}");
+        }
+    }
+}
+
+#[test]
+fn huge_lists_and_deep_negative_indices_fail_fast() {
+    // A face list claiming 4 billion uint entries in a 60-byte body.
+    let mut huge = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nelement face 1\nproperty list uint uint vertex_indices\nend_header\n"
+        .to_vec();
+    huge.extend([0u8; 36]);
+    huge.extend(u32::MAX.to_le_bytes());
+    huge.extend([0u8; 12]);
+    let src = MemorySource::new()
+        .with_file("h.ply", huge.leak())
+        .with_file("n.obj", b"v 0 0 0\nf -1 -2 -99999999999\n");
+    let err = load_mesh_from(&src, Path::new("h.ply"))
+        .map(|_| ())
+        .map_err(|e| e.to_string());
+    assert!(
+        err.as_ref()
+            .is_err_and(|e| e.contains("byte 205: truncated: a list of 4294967295 entries")),
+        "{err:?}"
+    );
+    let err = load_mesh_from(&src, Path::new("n.obj"))
+        .map(|_| ())
+        .map_err(|e| e.to_string());
+    assert_eq!(
+        err,
+        Err("n.obj:2: vertex index -2 is out of range (1 vertices)".to_owned())
+    );
+}

@@ -5,7 +5,8 @@
 //!   [`Scene`](lucent_scene::Scene);
 //! - [`load_mesh`] reads one OBJ (with its MTL materials) or PLY file;
 //! - [`load_texture`] decodes PNG/JPEG into linear RGB;
-//! - [`encode_png`] / [`save_png`] write 8-bit sRGB images.
+//! - [`encode_png`] / [`save_png`] write 8-bit sRGB images;
+//! - [`encode_ply`] / [`save_ply`] write triangle meshes as PLY.
 //!
 //! Reading goes through an [`AssetSource`]: [`FileSystem`] for files on
 //! disk, [`MemorySource`] for assets compiled into a binary (the app's
@@ -29,16 +30,20 @@
 mod error;
 mod image_io;
 mod mesh;
+mod mtl;
 mod obj;
 mod ply;
+mod ply_body;
+mod ply_write;
 mod scene_load;
 mod source;
 
 #[cfg(test)]
 mod hostile_tests;
 
-pub use error::{AssetError, LoadReport};
+pub use error::{AssetError, LoadReport, Location};
 pub use image_io::{encode_png, load_texture, save_png, texture_from_bytes};
 pub use mesh::{MeshPart, load_mesh, load_mesh_from};
+pub use ply_write::{PlyFormat, encode_ply, save_ply};
 pub use scene_load::{load_scene, load_scene_from};
-pub use source::{AssetSource, FileSystem, MemorySource, normalize_path};
+pub use source::{AssetReader, AssetSource, FileSystem, MemorySource, normalize_path};

@@ -15,6 +15,11 @@ pub struct MeshPart {
     pub mesh: TriMesh,
     /// The part's material from the file (OBJ + MTL), if any.
     pub material: Option<Material>,
+    /// The material's name in the file (`usemtl`), if any.
+    pub material_name: Option<String>,
+    /// Whether the loader computed the normals because the file gave none
+    /// (OBJ files, whose smoothing groups only the loader sees).
+    pub normals_computed: bool,
 }
 
 /// Loads an OBJ (with its MTL materials and textures) or PLY file from disk.

@@ -1,18 +1,61 @@
-//! Wavefront OBJ and MTL loading through tobj.
+//! Wavefront OBJ loading with our own single-pass parser; materials come
+//! from MTL files through tobj (see `mtl.rs`).
 //!
-//! Polygons are fan-triangulated, attributes are unified into one index per
-//! vertex (vertices on UV seams are split), and MTL materials and their
-//! diffuse textures are loaded through the same [`AssetSource`].
+//! tobj 4.0.5 drops smoothing groups, reports number errors without a line,
+//! reads index 0 as "missing" and wraps relative indices that reach before
+//! the first vertex, so the geometry is parsed here: `v` (with optional
+//! `r g b` colours), `vt`, `vn`, `f` (any polygon size, fan-triangulated in
+//! file order so triangle ids are stable; negative indices), `g`/`o`,
+//! `usemtl`, `mtllib` and `s`. Every error names the line. Corners are
+//! unified into one index per distinct (position, uv, normal) so vertices
+//! split only at attribute seams; where the file gives no normal, the
+//! smoothing group joins the key and the loader computes angle-weighted
+//! normals, so `s off` faces are flat and groups do not blend.
 
-use crate::{AssetError, AssetSource, LoadReport, MeshPart, load_texture, normalize_path};
+use crate::mtl::{MaterialSet, fallback_material, load_materials};
+use crate::{AssetError, AssetSource, LoadReport, Location, MeshPart};
 use lucent_geom::{TriMesh, Vec2, Vec3};
 use lucent_shading::color::srgb_to_linear;
-use lucent_shading::{Material, Texture};
-use std::cell::RefCell;
-use std::collections::HashMap;
-use std::io::Cursor;
-use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::path::Path;
+
+/// No index (a corner without uv or normal, or an empty chain).
+const NONE: u32 = u32::MAX;
+/// The smoothing key of faces under `s off`.
+const FLAT: u32 = u32::MAX;
+
+/// One face: its corners in `Parsed::corners`, its line and smoothing
+/// group (0 until an `s` statement, `FLAT` under `s off`).
+struct Face {
+    first: u32,
+    n: u32,
+    line: u32,
+    smoothing: u32,
+}
+
+/// A run of faces with one group name and one material.
+struct PartRec {
+    name: String,
+    material: Option<String>,
+    faces: std::ops::Range<usize>,
+}
+
+/// Everything the file says, with indices made absolute and 0-based.
+#[derive(Default)]
+struct Parsed {
+    positions: Vec<Vec3>,
+    colors: Option<Vec<Vec3>>,
+    uvs: Vec<Vec2>,
+    normals: Vec<Vec3>,
+    /// (position, uv, normal), `NONE` where absent.
+    corners: Vec<[u32; 3]>,
+    faces: Vec<Face>,
+    parts: Vec<PartRec>,
+    mtllibs: Vec<(usize, String)>,
+    /// Statements we do not use (curves, `vp`, ...), with an example.
+    ignored: (usize, String),
+}
+
+type LineError = (usize, String);
 
 pub(crate) fn load_obj(
     source: &dyn AssetSource,
@@ -20,98 +63,81 @@ pub(crate) fn load_obj(
     report: &mut LoadReport,
 ) -> Result<Vec<MeshPart>, AssetError> {
     let bytes = source.read(path)?;
-    let dir = path.parent().unwrap_or(Path::new("")).to_owned();
-    let options = tobj::LoadOptions {
-        single_index: true,
-        triangulate: true,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    // tobj calls this once per `mtllib`; remember where the MTL was, since
-    // its texture paths are relative to it, and why it failed, since tobj's
-    // error carries no line.
-    let mtl_dir: RefCell<Option<PathBuf>> = RefCell::new(None);
-    let mtl_problems: RefCell<Vec<String>> = RefCell::new(Vec::new());
-    let load_mtl = |mtl: &Path| {
-        let mtl_path = dir.join(mtl);
-        let bytes = source.read(&mtl_path).map_err(|e| {
-            mtl_problems.borrow_mut().push(e.to_string());
-            tobj::LoadError::OpenFileFailed
-        })?;
-        *mtl_dir.borrow_mut() = mtl_path.parent().map(Path::to_owned);
-        let text = normalize_mtl(&bytes).map_err(|(line, message)| {
-            mtl_problems
-                .borrow_mut()
-                .push(format!("{}:{line}: {message}", mtl_path.display()));
-            tobj::LoadError::MaterialParseError
-        })?;
-        tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()))
-    };
-    let text = normalize_obj(&bytes).map_err(|(line, message)| AssetError::Format {
-        path: path.to_owned(),
-        location: Some(line),
-        message,
-    })?;
-    let (models, materials) = tobj::load_obj_buf(&mut Cursor::new(text.as_bytes()), &options, load_mtl)
-        .map_err(|e| AssetError::format(path, format!("cannot parse OBJ: {e}")))?;
-    // tobj reports an error here only when an `mtllib` could not be loaded.
-    let materials = materials.unwrap_or_else(|e| {
-        let why = mtl_problems.borrow().first().cloned().unwrap_or_else(|| e.to_string());
+    let parsed = parse_obj(&bytes).map_err(|(line, message)| AssetError::at(path, Location::Line(line), message))?;
+    if parsed.ignored.0 > 0 {
         report.warn(
             path,
-            format!("cannot load its MTL file ({why}); using the default material"),
+            format!(
+                "{} statements ignored (unsupported, e.g. '{}')",
+                parsed.ignored.0, parsed.ignored.1
+            ),
         );
-        Vec::new()
-    });
-    let mtl_dir = mtl_dir.into_inner().unwrap_or(dir);
-    let mut textures = HashMap::new();
-    let materials: Vec<Material> = materials
-        .iter()
-        .map(|m| convert_material(source, m, &mtl_dir, &mut textures, report))
-        .collect();
-    let mut parts = Vec::with_capacity(models.len());
-    for model in models {
-        let mesh =
-            convert_mesh(&model.mesh).map_err(|e| AssetError::format(path, format!("object '{}': {e}", model.name)))?;
-        if mesh.n_triangles() == 0 {
-            continue;
+    }
+    // Parts keep only the vertices their faces use, so count the others here.
+    let mut used = vec![false; parsed.positions.len()];
+    for c in &parsed.corners {
+        if let Some(u) = used.get_mut(c[0] as usize) {
+            *u = true;
         }
-        let material = model.mesh.material_id.and_then(|id| materials.get(id).cloned());
+    }
+    let unused = used.iter().filter(|&&u| !u).count();
+    if unused > 0 {
+        report.warn(path, format!("{unused} vertices are not used by any face"));
+    }
+    let uses_materials = parsed.parts.iter().any(|p| p.material.is_some());
+    let materials = if uses_materials {
+        load_materials(source, path, &parsed.mtllibs, report)
+    } else {
+        MaterialSet::default()
+    };
+    let mut unifier = Unifier::new(parsed.positions.len());
+    let mut parts = Vec::with_capacity(parsed.parts.len());
+    let mut short_faces = 0;
+    let mut missing_materials: Vec<&str> = Vec::new();
+    for rec in &parsed.parts {
+        let built = build_part(&parsed, rec, &mut unifier, &mut short_faces)
+            .map_err(|(line, message)| AssetError::at(path, Location::Line(line), message))?;
+        let Some((mesh, normals_computed)) = built else {
+            continue;
+        };
+        let material = rec.material.as_ref().map(|name| match materials.get(name) {
+            Some(m) => m.clone(),
+            None => {
+                if !missing_materials.contains(&name.as_str()) {
+                    missing_materials.push(name);
+                }
+                fallback_material()
+            }
+        });
         parts.push(MeshPart {
-            name: model.name,
+            name: rec.name.clone(),
             mesh,
             material,
+            material_name: rec.material.clone(),
+            normals_computed,
         });
+    }
+    if !missing_materials.is_empty() && materials.loaded_any {
+        report.warn(
+            path,
+            format!(
+                "material(s) {} not found in its MTL files; shown in magenta",
+                missing_materials.join(", ")
+            ),
+        );
+    }
+    if short_faces > 0 {
+        report.warn(
+            path,
+            format!("{short_faces} faces have fewer than 3 vertices and give no triangles"),
+        );
     }
     Ok(parts)
 }
 
-fn triples(v: &[f32]) -> Vec<Vec3> {
-    v.chunks_exact(3).map(Vec3::from_slice).collect()
-}
-
-fn convert_mesh(m: &tobj::Mesh) -> Result<TriMesh, lucent_geom::MeshError> {
-    let indices = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-    let mut mesh = TriMesh::new(triples(&m.positions), indices)?;
-    if !m.normals.is_empty() {
-        mesh = mesh.with_normals(triples(&m.normals).into_iter().map(Vec3::normalize_or_zero).collect())?;
-    }
-    if !m.texcoords.is_empty() {
-        mesh = mesh.with_uvs(m.texcoords.chunks_exact(2).map(Vec2::from_slice).collect())?;
-    }
-    if !m.vertex_color.is_empty() {
-        let colors = triples(&m.vertex_color)
-            .into_iter()
-            .map(|c| c.clamp(Vec3::ZERO, Vec3::ONE).to_array().map(srgb_to_linear).into())
-            .collect();
-        mesh = mesh.with_colors(colors)?;
-    }
-    Ok(mesh)
-}
-
 /// The line without its comment: a `#` at the start of a word begins one
 /// (so `usemtl mat#1` keeps its name).
-fn strip_comment(line: &str) -> &str {
+pub(crate) fn strip_comment(line: &str) -> &str {
     let mut prev_is_space = true;
     for (i, c) in line.char_indices() {
         if c == '#' && prev_is_space {
@@ -122,273 +148,310 @@ fn strip_comment(line: &str) -> &str {
     line.trim()
 }
 
-/// Rewrites OBJ text so tobj reads it safely and as the file means it:
-/// comments are removed, and every index of a face, line or point becomes
-/// an absolute, checked index. tobj 4.0.5 reads index 0 as "missing", wraps
-/// relative indices that reach before the first vertex, and can overflow on
-/// huge ones; here each is an error `(line, message)` instead.
-fn normalize_obj(bytes: &[u8]) -> Result<String, (usize, String)> {
-    const KINDS: [(&str, &str); 3] = [
-        ("vertex", "vertices"),
-        ("texture coordinate", "texture coordinates"),
-        ("normal", "normals"),
-    ];
+fn number(word: &str, line: usize) -> Result<f32, LineError> {
+    word.parse().map_err(|_| (line, format!("'{word}' is not a number")))
+}
+
+fn parse_obj(bytes: &[u8]) -> Result<Parsed, LineError> {
     let text = String::from_utf8_lossy(bytes);
-    let kind_of = |keyword: &str| match keyword {
-        "v" => Some(0),
-        "vt" => Some(1),
-        "vn" => Some(2),
-        _ => None,
-    };
-    let mut totals = [0usize; 3];
-    for line in text.lines() {
-        if let Some(k) = line.split_whitespace().next().and_then(kind_of) {
-            totals[k] += 1;
+    let mut p = Parsed::default();
+    let mut name = String::new();
+    let mut material: Option<String> = None;
+    let mut smoothing = 0u32;
+    let mut part_start = 0usize;
+    let mut values = [0.0f32; 7];
+    for (i, raw) in text.split('\n').enumerate() {
+        let line_no = i + 1;
+        let line = strip_comment(raw);
+        let mut words = line.split_ascii_whitespace();
+        let Some(keyword) = words.next() else { continue };
+        match keyword {
+            "v" | "vt" | "vn" => {
+                let mut n = 0;
+                for w in words {
+                    if n == values.len() {
+                        return Err((line_no, format!("too many numbers after '{keyword}'")));
+                    }
+                    values[n] = number(w, line_no)?;
+                    n += 1;
+                }
+                push_vertex_data(&mut p, keyword, &values[..n], line_no)?;
+            }
+            "f" => {
+                let first = p.corners.len();
+                for w in words {
+                    p.corners.push(parse_corner(w, &p, line_no)?);
+                }
+                p.faces.push(Face {
+                    first: first as u32,
+                    n: (p.corners.len() - first) as u32,
+                    line: line_no as u32,
+                    smoothing,
+                });
+            }
+            "g" | "o" | "usemtl" => {
+                let rest = line[keyword.len()..].trim();
+                let (new_name, new_material) = if keyword == "usemtl" {
+                    (name.clone(), Some(rest.to_owned()))
+                } else {
+                    (rest.to_owned(), material.clone())
+                };
+                if new_name != name || new_material != material {
+                    close_part(&mut p, &name, &material, &mut part_start);
+                    (name, material) = (new_name, new_material);
+                }
+            }
+            "s" => {
+                let w = words.next().unwrap_or("off");
+                smoothing = match w {
+                    "off" => FLAT,
+                    "on" => 1,
+                    _ => match w.parse::<u32>() {
+                        Ok(0) => FLAT,
+                        Ok(n) if n != FLAT => n,
+                        _ => return Err((line_no, format!("'{w}' is not a smoothing group (a number or 'off')"))),
+                    },
+                };
+            }
+            "mtllib" => {
+                let rest = line[keyword.len()..].trim();
+                if !rest.is_empty() {
+                    p.mtllibs.push((line_no, rest.to_owned()));
+                }
+            }
+            "l" | "p" => {}
+            other => {
+                if p.ignored.0 == 0 {
+                    p.ignored.1 = other.chars().take(20).collect();
+                }
+                p.ignored.0 += 1;
+            }
         }
     }
-    let mut seen = [0usize; 3];
-    let mut out = String::with_capacity(text.len());
-    for (i, raw) in text.lines().enumerate() {
-        let line = strip_comment(raw);
-        let mut words = line.split_whitespace();
-        let keyword = words.next().unwrap_or_default();
-        if let Some(k) = kind_of(keyword) {
-            seen[k] += 1;
+    close_part(&mut p, &name, &material, &mut part_start);
+    Ok(p)
+}
+
+fn close_part(p: &mut Parsed, name: &str, material: &Option<String>, part_start: &mut usize) {
+    if p.faces.len() > *part_start {
+        p.parts.push(PartRec {
+            name: name.to_owned(),
+            material: material.clone(),
+            faces: *part_start..p.faces.len(),
+        });
+    }
+    *part_start = p.faces.len();
+}
+
+fn push_vertex_data(p: &mut Parsed, keyword: &str, v: &[f32], line: usize) -> Result<(), LineError> {
+    match (keyword, v.len()) {
+        ("v", 3 | 4) => {
+            p.positions.push(Vec3::new(v[0], v[1], v[2]));
+            if let Some(c) = &mut p.colors {
+                c.push(Vec3::ONE);
+            }
         }
-        if !matches!(keyword, "f" | "l" | "p") {
-            out.push_str(line);
-            out.push('\n');
+        ("v", 6) => {
+            let colors = p.colors.get_or_insert_with(|| vec![Vec3::ONE; p.positions.len()]);
+            let c = |x: f32| srgb_to_linear(x.clamp(0.0, 1.0));
+            colors.push(Vec3::new(c(v[3]), c(v[4]), c(v[5])));
+            p.positions.push(Vec3::new(v[0], v[1], v[2]));
+        }
+        ("vt", 1..=3) => p.uvs.push(Vec2::new(v[0], v.get(1).copied().unwrap_or(0.0))),
+        ("vn", 3) => p.normals.push(Vec3::new(v[0], v[1], v[2])),
+        _ => {
+            let expected = match keyword {
+                "v" => "3, 4 or 6",
+                "vt" => "1 to 3",
+                _ => "3",
+            };
+            return Err((line, format!("'{keyword}' needs {expected} numbers, found {}", v.len())));
+        }
+    }
+    Ok(())
+}
+
+const KINDS: [(&str, &str); 3] = [
+    ("vertex", "vertices"),
+    ("texture coordinate", "texture coordinates"),
+    ("normal", "normals"),
+];
+
+/// One face corner `v`, `v/vt`, `v//vn` or `v/vt/vn`, made absolute and
+/// 0-based. Positive indices are checked against the totals later (they may
+/// refer forward); negative ones against what precedes this line.
+fn parse_corner(word: &str, p: &Parsed, line: usize) -> Result<[u32; 3], LineError> {
+    let mut out = [NONE; 3];
+    let seen = [p.positions.len(), p.uvs.len(), p.normals.len()];
+    for (k, part) in word.split('/').enumerate() {
+        if k > 2 {
+            return Err((line, format!("'{word}' has more than three indices")));
+        }
+        if part.is_empty() {
+            if k == 0 {
+                return Err((line, format!("'{word}' has no vertex index")));
+            }
             continue;
         }
-        out.push_str(keyword);
-        for word in words {
-            out.push(' ');
-            let parts: Vec<&str> = word.split('/').collect();
-            if parts.len() > 3 {
-                return Err((i + 1, format!("'{word}' has more than three indices")));
-            }
-            for (k, part) in parts.iter().enumerate() {
-                if k > 0 {
-                    out.push('/');
-                }
-                if part.is_empty() {
-                    continue;
-                }
-                let n: i64 = part.parse().map_err(|_| (i + 1, format!("'{part}' is not an index")))?;
-                let absolute = match n {
-                    0 => return Err((i + 1, "index 0 is not valid (OBJ indices start at 1)".to_owned())),
-                    n if n < 0 => seen[k] as i64 + n + 1,
-                    n => n,
-                };
-                if absolute < 1 || absolute > totals[k] as i64 {
-                    let (one, many) = KINDS[k];
-                    let count = if n < 0 { seen[k] } else { totals[k] };
-                    return Err((i + 1, format!("{one} index {n} is out of range ({count} {many})")));
-                }
-                out.push_str(&absolute.to_string());
-            }
-        }
-        out.push('\n');
-    }
-    Ok(out)
-}
-
-/// Rewrites MTL text so tobj can read it safely: a colour statement (`Ka`,
-/// `Kd`, `Ks`, `Ke`, `Tf`) with one number means grey and is expanded to
-/// three, as the MTL specification says (tobj 4.0.5 panics on fewer than
-/// three). Any other count, or a non-number, is an error `(line, message)`.
-/// Inline `#` comments are dropped.
-fn normalize_mtl(bytes: &[u8]) -> Result<String, (usize, String)> {
-    let text = String::from_utf8_lossy(bytes);
-    let mut out = String::with_capacity(text.len() + 64);
-    for (i, raw) in text.lines().enumerate() {
-        let line = strip_comment(raw);
-        let mut words = line.split_whitespace();
-        let keyword = words.next().unwrap_or_default();
-        if matches!(keyword, "Ka" | "Kd" | "Ks" | "Ke" | "Tf") {
-            let values: Vec<&str> = words.collect();
-            let numbers: Option<Vec<f32>> = values.iter().map(|v| v.parse().ok()).collect();
-            match numbers.as_deref() {
-                Some([g]) => out.push_str(&format!("{keyword} {g} {g} {g}")),
-                Some([r, g, b]) => out.push_str(&format!("{keyword} {r} {g} {b}")),
-                _ => {
-                    let message = format!("`{keyword}` needs one or three numbers, found '{}'", values.join(" "));
-                    return Err((i + 1, message));
-                }
-            }
-        } else {
-            out.push_str(line);
-        }
-        out.push('\n');
-    }
-    Ok(out)
-}
-
-/// Maps MTL fields onto [`Material`]: Ka (default Kd), Kd, Ks, Ns, Ke, Ni;
-/// `d < 1` becomes transmission `kt = 1 - d`; illumination models with ray
-/// traced reflection (3, 5, 7) set the mirror weight `kr = Ks`.
-fn convert_material(
-    source: &dyn AssetSource,
-    m: &tobj::Material,
-    mtl_dir: &Path,
-    textures: &mut HashMap<PathBuf, Arc<Texture>>,
-    report: &mut LoadReport,
-) -> Material {
-    let v = |c: Option<[f32; 3]>, default: Vec3| c.map_or(default, Vec3::from).max(Vec3::ZERO);
-    let kd = v(m.diffuse, Vec3::splat(0.8));
-    let ks = v(m.specular, Vec3::ZERO);
-    let mut material = Material {
-        ka: v(m.ambient, kd),
-        kd,
-        ks,
-        shininess: m.shininess.filter(|s| s.is_finite()).unwrap_or(32.0).max(0.0),
-        kr: if matches!(m.illumination_model, Some(3 | 5 | 7)) {
-            ks
-        } else {
-            Vec3::ZERO
-        },
-        kt: Vec3::splat((1.0 - m.dissolve.unwrap_or(1.0)).clamp(0.0, 1.0)),
-        ior: m.optical_density.filter(|n| n.is_finite() && *n > 0.0).unwrap_or(1.0),
-        emission: v(m.emissive, Vec3::ZERO),
-        diffuse_map: None,
-    };
-    if let Some(tex) = &m.diffuse_texture {
-        // Options such as `-s 1 1 1` come before the file name.
-        let file = tex.split_whitespace().last().unwrap_or_default();
-        let tex_path = normalize_path(&mtl_dir.join(file));
-        let loaded = match textures.get(&tex_path) {
-            Some(t) => t.clone(),
-            None => {
-                let t = match load_texture(source, &tex_path) {
-                    Ok(t) => Arc::new(t),
-                    Err(e) => {
-                        report.warn(
-                            &tex_path,
-                            format!("{e}; material '{}' shows a checkerboard instead", m.name),
-                        );
-                        Arc::new(missing_texture())
-                    }
-                };
-                textures.insert(tex_path, t.clone());
-                t
-            }
+        let n: i64 = part.parse().map_err(|_| (line, format!("'{part}' is not an index")))?;
+        let absolute = match n {
+            0 => return Err((line, "index 0 is not valid (OBJ indices start at 1)".to_owned())),
+            n if n < 0 => seen[k] as i64 + n,
+            n => n - 1,
         };
-        material.diffuse_map = Some(loaded);
+        if absolute < 0 || absolute >= i64::from(NONE) {
+            let (one, many) = KINDS[k];
+            return Err((line, format!("{one} index {n} is out of range ({} {many})", seen[k])));
+        }
+        out[k] = absolute as u32;
     }
-    material
+    Ok(out)
 }
 
-/// A magenta and black checkerboard that makes a missing texture obvious.
-pub(crate) fn missing_texture() -> Texture {
-    let texels = (0..64)
-        .map(|i| {
-            if (i % 8 + i / 8) % 2 == 0 {
-                Vec3::new(1.0, 0.0, 1.0)
-            } else {
-                Vec3::ZERO
+/// Maps (position, uv, normal, smoothing key) to output vertices of one
+/// part without hashing: `first[v]` heads a chain, through `next`, of the
+/// output vertices made from position `v`.
+struct Unifier {
+    first: Vec<u32>,
+    next: Vec<u32>,
+    keys: Vec<(u32, u32, u64)>,
+    src: Vec<u32>,
+}
+
+impl Unifier {
+    fn new(n_positions: usize) -> Self {
+        Self {
+            first: vec![NONE; n_positions],
+            next: Vec::new(),
+            keys: Vec::new(),
+            src: Vec::new(),
+        }
+    }
+
+    /// The output vertex for a corner, and whether it is new.
+    #[inline]
+    fn vertex(&mut self, v: u32, key: (u32, u32, u64)) -> (u32, bool) {
+        let mut i = self.first[v as usize];
+        while i != NONE {
+            if self.keys[i as usize] == key {
+                return (i, false);
             }
-        })
-        .collect();
-    // 64 texels for 8x8 cannot fail; the constant is only a formality.
-    Texture::new(8, 8, texels).unwrap_or_else(|_| Texture::constant(Vec3::new(1.0, 0.0, 1.0)))
+            i = self.next[i as usize];
+        }
+        let new = self.keys.len() as u32;
+        self.keys.push(key);
+        self.next.push(self.first[v as usize]);
+        self.src.push(v);
+        self.first[v as usize] = new;
+        (new, true)
+    }
+
+    /// Forgets the part's vertices, touching only what it used.
+    fn reset(&mut self) {
+        for &v in &self.src {
+            self.first[v as usize] = NONE;
+        }
+        self.next.clear();
+        self.keys.clear();
+        self.src.clear();
+    }
+}
+
+/// The part's mesh and whether its normals were computed, or `None` when
+/// it has no triangles.
+fn build_part(
+    p: &Parsed,
+    rec: &PartRec,
+    unifier: &mut Unifier,
+    short_faces: &mut usize,
+) -> Result<Option<(TriMesh, bool)>, LineError> {
+    unifier.reset();
+    let faces = &p.faces[rec.faces.clone()];
+    let corners_of = |f: &Face| &p.corners[f.first as usize..(f.first + f.n) as usize];
+    let has_uvs = faces.iter().any(|f| corners_of(f).iter().any(|c| c[1] != NONE));
+    let mut positions = Vec::new();
+    let mut uvs = Vec::new();
+    let mut normals = Vec::new();
+    let mut colors = Vec::new();
+    let mut computed = Vec::new();
+    let mut indices = Vec::with_capacity(faces.len());
+    let mut poly: Vec<u32> = Vec::new();
+    for (face_idx, f) in faces.iter().enumerate() {
+        let line = f.line as usize;
+        if f.n < 3 {
+            *short_faces += 1;
+            continue;
+        }
+        poly.clear();
+        for c in corners_of(f) {
+            let [v, vt, vn] = *c;
+            for (k, (idx, total)) in [(v, p.positions.len()), (vt, p.uvs.len()), (vn, p.normals.len())]
+                .into_iter()
+                .enumerate()
+            {
+                if idx != NONE && idx as usize >= total {
+                    let (one, many) = KINDS[k];
+                    return Err((
+                        line,
+                        format!("{one} index {} is out of range ({total} {many})", idx + 1),
+                    ));
+                }
+            }
+            // Without a normal in the file, the smoothing group decides
+            // which faces share the vertex (and so its computed normal);
+            // under `s off` every face gets a key of its own.
+            let smoothing = match (vn, f.smoothing) {
+                (NONE, FLAT) => (1u64 << 32) | face_idx as u64,
+                (NONE, s) => u64::from(s),
+                _ => 0,
+            };
+            let (out, new) = unifier.vertex(v, (vt, vn, smoothing));
+            if new {
+                positions.push(p.positions[v as usize]);
+                if has_uvs {
+                    uvs.push(if vt == NONE { Vec2::ZERO } else { p.uvs[vt as usize] });
+                }
+                normals.push(if vn == NONE {
+                    Vec3::ZERO
+                } else {
+                    p.normals[vn as usize].normalize_or_zero()
+                });
+                computed.push(vn == NONE);
+                if let Some(c) = &p.colors {
+                    colors.push(c[v as usize]);
+                }
+            }
+            poly.push(out);
+        }
+        indices.extend(poly[1..].windows(2).map(|w| [poly[0], w[0], w[1]]));
+    }
+    if indices.is_empty() {
+        return Ok(None);
+    }
+    let err = |e: lucent_geom::MeshError| (rec_line(faces), e.to_string());
+    let mut mesh = TriMesh::new(positions, indices).map_err(err)?;
+    let any_computed = computed.iter().any(|&c| c);
+    if any_computed {
+        let smooth = mesh.compute_smooth_normals();
+        for ((n, s), c) in normals.iter_mut().zip(smooth).zip(&computed) {
+            if *c {
+                *n = s;
+            }
+        }
+    }
+    mesh = mesh.with_normals(normals).map_err(err)?;
+    if has_uvs {
+        mesh = mesh.with_uvs(uvs).map_err(err)?;
+    }
+    if p.colors.is_some() {
+        mesh = mesh.with_colors(colors).map_err(err)?;
+    }
+    Ok(Some((mesh, any_computed)))
+}
+
+fn rec_line(faces: &[Face]) -> usize {
+    faces.first().map_or(0, |f| f.line as usize)
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::{MemorySource, load_mesh_from};
-
-    const QUAD_OBJ: &[u8] = b"mtllib q.mtl\r\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
-usemtl shiny\nf 1/1 2/2 3/3 4/4\n";
-    const QUAD_MTL: &[u8] = b"newmtl shiny\nKa 0.1 0.1 0.1  # comment\nKd 0.5 0.25 0\nKs 0.9 0.9 0.9\nNs 50\nillum 3\nd 0.75\nNi 1.33\nmap_Kd -s 1 1 1 tex.png\n";
-
-    #[test]
-    fn loads_polygons_uvs_and_mtl() {
-        let src = MemorySource::new()
-            .with_file("m/q.obj", QUAD_OBJ)
-            .with_file("m/q.mtl", QUAD_MTL);
-        let (parts, report) = load_mesh_from(&src, Path::new("m/q.obj"))
-            .map_err(|e| e.to_string())
-            .unwrap_or_default();
-        assert_eq!(parts.len(), 1);
-        let part = &parts[0];
-        assert_eq!(part.mesh.n_triangles(), 2, "quad fanned into two triangles");
-        assert!(part.mesh.uvs().is_some() && part.mesh.normals().is_none());
-        let m = part.material.clone().unwrap_or_default();
-        assert_eq!(
-            (m.ka, m.kd, m.shininess, m.ior),
-            (Vec3::splat(0.1), Vec3::new(0.5, 0.25, 0.0), 50.0, 1.33)
-        );
-        assert_eq!((m.kr, m.kt), (Vec3::splat(0.9), Vec3::splat(0.25)));
-        // The texture is missing: a warning and a checkerboard, not an error.
-        assert!(m.diffuse_map.is_some_and(|t| t.width() == 8));
-        assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
-        assert!(report.warnings[0].starts_with("m/tex.png: "), "{:?}", report.warnings);
-    }
-
-    #[test]
-    fn mtl_colours_with_one_number_are_grey_and_bad_ones_are_located() {
-        assert_eq!(
-            normalize_mtl(b"Kd 0.5\nKs 1 0 0 # red\nNs 8\n"),
-            Ok("Kd 0.5 0.5 0.5\nKs 1 0 0\nNs 8\n".into())
-        );
-        assert_eq!(
-            normalize_mtl(b"newmtl a\nKa 0.2 0.3\n"),
-            Err((2, "`Ka` needs one or three numbers, found '0.2 0.3'".into()))
-        );
-        let src = MemorySource::new()
-            .with_file("q.obj", QUAD_OBJ)
-            .with_file("q.mtl", b"newmtl shiny\nKd 0.2 x 0.1\n");
-        let (_, report) = load_mesh_from(&src, Path::new("q.obj")).unwrap();
-        assert_eq!(
-            report.warnings,
-            vec!["q.obj: cannot load its MTL file (q.mtl:2: `Kd` needs one or three numbers, found '0.2 x 0.1'); using the default material".to_owned()]
-        );
-    }
-
-    #[test]
-    fn obj_indices_are_made_absolute_and_checked() {
-        let obj = b"v 0 0 0\nv 1 0 0 # comment\nv 0 1 0\nvt 0 0\nf -3/1 -2/-1 -1/1 # tri\ng a#1\n";
-        assert_eq!(
-            normalize_obj(obj),
-            Ok("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\ng a#1\n".into())
-        );
-        assert_eq!(
-            normalize_obj(b"v 0 0 0\nf 1//1 1 1\n"),
-            Err((2, "normal index 1 is out of range (0 normals)".into()))
-        );
-        assert_eq!(
-            normalize_obj(b"v 0 0 0\nf 0 1 1\n"),
-            Err((2, "index 0 is not valid (OBJ indices start at 1)".into()))
-        );
-        assert_eq!(
-            normalize_obj(b"v 0 0 0\nf -2147483648 1 1\n"),
-            Err((2, "vertex index -2147483648 is out of range (1 vertices)".into()))
-        );
-        assert_eq!(
-            normalize_obj(b"f 1/2/3/4\n"),
-            Err((1, "'1/2/3/4' has more than three indices".into()))
-        );
-        assert_eq!(
-            normalize_obj(b"v 0 0 0\nf 1 x\n"),
-            Err((2, "'x' is not an index".into()))
-        );
-    }
-
-    #[test]
-    fn missing_mtl_is_a_warning_and_bad_indices_an_error() {
-        let src = MemorySource::new()
-            .with_file("q.obj", QUAD_OBJ)
-            .with_file("bad.obj", b"v 0 0 0\nv 1 0 0\nf 1 2 3\n");
-        let (parts, report) = load_mesh_from(&src, Path::new("q.obj")).unwrap_or_default();
-        assert!(parts[0].material.is_none());
-        assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
-        let err = load_mesh_from(&src, Path::new("bad.obj"))
-            .map(|_| ())
-            .map_err(|e| e.to_string());
-        assert_eq!(
-            err,
-            Err("bad.obj:3: vertex index 3 is out of range (2 vertices)".to_owned())
-        );
-    }
-}
+mod tests;

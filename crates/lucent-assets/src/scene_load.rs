@@ -27,7 +27,7 @@ pub fn load_scene_from(source: &dyn AssetSource, path: &Path) -> Result<(Scene, 
         let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
         AssetError::Format {
             path: path.to_owned(),
-            location: Some(line),
+            location: Some(crate::Location::Line(line)),
             message: "the scene file is not valid UTF-8 text".to_owned(),
         }
     })?;

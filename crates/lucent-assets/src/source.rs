@@ -3,12 +3,32 @@
 use crate::AssetError;
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::io::{Cursor, Read};
 use std::path::{Component, Path, PathBuf};
 
 /// A place to read asset files from.
 pub trait AssetSource: Sync {
     /// The whole content of the file at `path`.
     fn read(&self, path: &Path) -> Result<Cow<'_, [u8]>, AssetError>;
+
+    /// The file at `path` opened for reading in pieces, with its length, so
+    /// big files can be parsed without holding them whole in memory. The
+    /// default reads the whole file with [`AssetSource::read`].
+    fn open(&self, path: &Path) -> Result<AssetReader<'_>, AssetError> {
+        let bytes = self.read(path)?;
+        Ok(AssetReader {
+            len: bytes.len() as u64,
+            reader: Box::new(Cursor::new(bytes)),
+        })
+    }
+}
+
+/// An open asset file: a reader positioned at its start and its length.
+pub struct AssetReader<'a> {
+    /// The file's bytes, from the start.
+    pub reader: Box<dyn Read + 'a>,
+    /// The file's length in bytes.
+    pub len: u64,
 }
 
 /// Reads files from disk.
@@ -23,6 +43,22 @@ impl AssetSource for FileSystem {
         std::fs::read(path).map(Cow::Owned).map_err(|error| AssetError::Io {
             path: path.to_owned(),
             error,
+        })
+    }
+
+    fn open(&self, path: &Path) -> Result<AssetReader<'_>, AssetError> {
+        let io = |error| AssetError::Io {
+            path: path.to_owned(),
+            error,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let meta = file.metadata().map_err(io)?;
+        if meta.is_dir() {
+            return Err(AssetError::format(path, "is a directory, not a file"));
+        }
+        Ok(AssetReader {
+            reader: Box::new(file),
+            len: meta.len(),
         })
     }
 }

@@ -25,6 +25,11 @@ pub struct Texture {
     texels: Vec<Vec3>,
     /// How coordinates outside the unit square are mapped.
     pub wrap: WrapMode,
+    /// Scale applied to texture coordinates before lookup (MTL `-s`).
+    pub uv_scale: Vec2,
+    /// Offset added after scaling (MTL `-o`): the lookup reads
+    /// `uv * uv_scale + uv_offset`.
+    pub uv_offset: Vec2,
 }
 
 /// Why a texture could not be made.
@@ -69,6 +74,8 @@ impl Texture {
             height,
             texels,
             wrap: WrapMode::default(),
+            uv_scale: Vec2::ONE,
+            uv_offset: Vec2::ZERO,
         })
     }
 
@@ -79,6 +86,8 @@ impl Texture {
             height: 1,
             texels: vec![color],
             wrap: WrapMode::default(),
+            uv_scale: Vec2::ONE,
+            uv_offset: Vec2::ZERO,
         }
     }
 
@@ -100,10 +109,12 @@ impl Texture {
         self.texels[y * self.width as usize + x]
     }
 
-    /// Bilinear interpolation of the four texels around `uv` (S6).
+    /// Bilinear interpolation of the four texels around
+    /// `uv * uv_scale + uv_offset` (S6).
     /// Non-finite coordinates read as 0.
     #[inline]
     pub fn sample_bilinear(&self, uv: Vec2) -> Vec3 {
+        let uv = uv * self.uv_scale + self.uv_offset;
         let u = if uv.x.is_finite() { uv.x } else { 0.0 };
         let v = if uv.y.is_finite() { uv.y } else { 0.0 };
         // Continuous texel coordinates with texel centres at integers.
@@ -181,6 +192,15 @@ mod tests {
             r.sample_bilinear(Vec2::new(3.25, -1.25)),
             r.sample_bilinear(Vec2::new(0.25, 0.75))
         ));
+    }
+
+    #[test]
+    fn scale_and_offset_move_the_lookup() {
+        let mut t = tiny(WrapMode::Clamp);
+        t.uv_scale = Vec2::splat(0.5);
+        t.uv_offset = Vec2::new(0.5, 0.0);
+        // (0.5, 0.5) -> (0.75, 0.25): the bottom-right texel.
+        assert!(close(t.sample_bilinear(Vec2::splat(0.5)), Vec3::ONE));
     }
 
     #[test]
