@@ -102,6 +102,18 @@ mod tests {
     }
 
     #[test]
+    fn a_hand_made_png_reads_with_v_up() {
+        // 2x2, top row red and green, bottom row blue and white.
+        let png = encode_png(2, 2, &[255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255]).unwrap_or_default();
+        let tex = texture_from_bytes(&png, Path::new("t.png")).unwrap_or_else(|_| Texture::constant(Vec3::ZERO));
+        let at = |u: f32, v: f32| tex.sample_bilinear(Vec2::new(u, v));
+        assert_eq!(at(0.25, 0.75), Vec3::X, "top left is v = 0.75");
+        assert_eq!(at(0.75, 0.75), Vec3::Y);
+        assert_eq!(at(0.25, 0.25), Vec3::Z, "bottom left is v = 0.25");
+        assert_eq!(at(0.75, 0.25), Vec3::ONE);
+    }
+
+    #[test]
     fn non_images_and_truncated_images_are_errors() {
         let err = |bytes: &'static [u8]| {
             let src = MemorySource::new().with_file("x.png", bytes);

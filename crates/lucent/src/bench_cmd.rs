@@ -23,6 +23,8 @@ pub struct BenchArgs {
 enum BenchCommand {
     /// Time whole renders of a scene (default: the built-in seed scene).
     Render(RenderBenchArgs),
+    /// Time mesh loading: MB/s, triangles/s and peak memory per file.
+    Load(crate::bench_load::LoadBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -45,6 +47,7 @@ struct RenderBenchArgs {
 pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
         BenchCommand::Render(a) => bench_render(a),
+        BenchCommand::Load(a) => crate::bench_load::run(a),
     }
 }
 
@@ -92,7 +95,7 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
 }
 
 /// Median of sorted values (mean of the middle two for even counts).
-fn median(sorted: &[f64]) -> f64 {
+pub(crate) fn median(sorted: &[f64]) -> f64 {
     match sorted.len() {
         0 => 0.0,
         n if n % 2 == 1 => sorted[n / 2],

@@ -1,11 +1,14 @@
 //! `lucent`: the Lucent app. With no arguments it opens the interactive
 //! viewer on the built-in seed scene; `lucent render` renders a scene file
-//! to a PNG without a window; `lucent bench` measures.
+//! to a PNG without a window; `lucent info` describes a file as JSON;
+//! `lucent bench` measures.
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a command-line program reports on stdout")]
 
 mod bench_cmd;
+mod bench_load;
 mod builtin;
+mod info_cmd;
 mod render_cmd;
 mod viewer;
 
@@ -35,6 +38,8 @@ enum Command {
     Render(render_cmd::RenderArgs),
     /// Measure: repeated renders, median time, one JSON line.
     Bench(bench_cmd::BenchArgs),
+    /// Describe a mesh (.obj, .ply) or scene (.toml) file as JSON.
+    Info(info_cmd::InfoArgs),
 }
 
 /// Settings shared by `view` and `render`, overriding the scene's `[render]`.
@@ -143,6 +148,7 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::View(args)) => viewer::run(args),
         Some(Command::Render(args)) => render_cmd::run(args),
         Some(Command::Bench(args)) => bench_cmd::run(args),
+        Some(Command::Info(args)) => info_cmd::run(args),
     }
 }
 
