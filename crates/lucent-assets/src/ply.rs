@@ -176,7 +176,7 @@ fn find_header_end(input: &mut Input<'_>) -> std::io::Result<Result<usize, Strin
                 return Ok(Err(format!("no end_header line in the first {MAX_HEADER} bytes")));
             }
             None => {
-                let want = avail.len() + 1;
+                let want = (2 * avail.len()).max(4096);
                 input.fill(want)?;
             }
         }
@@ -407,15 +407,15 @@ fn check_header_text(bytes: &[u8]) -> Result<(), (usize, String)> {
 }
 
 /// Fails when the elements' counts cannot fit in the bytes after the
-/// header (each ASCII element takes at least two bytes, a value and a line
-/// break; each binary one at least the sum of its scalar sizes), so absurd
+/// header (each ASCII entry takes at least two bytes per property, a digit
+/// and a separator; each binary one at least the sum of its scalar sizes), so absurd
 /// counts are refused before anything is read or allocated. Names the first
 /// element that runs past the end.
 fn check_counts_fit(header: &Header, payload_len: u64) -> Result<(), String> {
     let mut needed: u128 = 0;
     for def in header.elements.values() {
         let per_element: u128 = match header.encoding {
-            Encoding::Ascii => 2,
+            Encoding::Ascii => 2 * def.properties.len().max(1) as u128,
             _ => def
                 .properties
                 .values()

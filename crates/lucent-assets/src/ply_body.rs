@@ -295,7 +295,8 @@ fn next_line(input: &mut Input<'_>) -> Result<Option<(usize, usize)>, String> {
             return Err(format!("a line longer than {MAX_LINE} bytes"));
         }
         searched = avail.len();
-        let want = (avail.len() + 1).max(CHUNK / 2);
+        // Grow geometrically, so a long line costs linear time.
+        let want = (2 * avail.len()).max(CHUNK / 2);
         input.fill(want).map_err(|e| format!("read error: {e}"))?;
     }
 }

@@ -306,3 +306,18 @@ fn warnings_for_short_faces_and_non_finite_vertices() {
     assert!(report.warnings[0].contains("1 faces have fewer than 3 vertices"));
     assert!(report.warnings[1].contains("1 vertices have non-finite coordinates"));
 }
+
+#[test]
+fn long_lines_and_headers_read_in_linear_time() {
+    // A 600 kB run of spaces inside a vertex line and a 300 kB comment:
+    // both cross the read buffer many times over.
+    let mut text = format!(
+        "ply\nformat ascii 1.0\ncomment {}\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+element face 1\nproperty list uchar int vertex_indices\nend_header\n",
+        "c".repeat(300_000)
+    );
+    text.push_str(&" ".repeat(600_000));
+    text.push_str("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    let (parts, _) = load(text.into_bytes().leak()).unwrap_or_default();
+    assert_eq!(parts.first().map(|p| p.mesh.n_triangles()), Some(1));
+}
