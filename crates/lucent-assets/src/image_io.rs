@@ -114,6 +114,21 @@ mod tests {
     }
 
     #[test]
+    fn jpeg_decodes_to_linear_too() {
+        let grey = image::RgbImage::from_pixel(8, 8, image::Rgb([128, 128, 128]));
+        let mut jpeg = Vec::new();
+        let encoded = grey.write_to(&mut Cursor::new(&mut jpeg), ImageFormat::Jpeg);
+        assert!(encoded.is_ok(), "{encoded:?}");
+        let tex = texture_from_bytes(&jpeg, Path::new("t.jpg")).map_err(|e| e.to_string());
+        let Ok(tex) = tex else {
+            panic!("{tex:?}");
+        };
+        // Lossy, but a flat grey block survives within a step or two.
+        let v = tex.texel(3, 3);
+        assert!((v.x - 0.2158605).abs() < 0.01, "{v}");
+    }
+
+    #[test]
     fn non_images_and_truncated_images_are_errors() {
         let err = |bytes: &'static [u8]| {
             let src = MemorySource::new().with_file("x.png", bytes);

@@ -198,10 +198,15 @@ impl Loader<'_> {
                 })?;
                 self.report.extend(report);
                 let mut loaded = Vec::with_capacity(parts.len());
+                // One entity per material of the file, however many parts use it.
+                let mut file_materials: HashMap<String, Entity> = HashMap::new();
                 for part in parts {
-                    let material = part
-                        .material
-                        .map(|m| self.scene.add_material(&format!("{}:{}", path.display(), part.name), m));
+                    let key = part.material_name.clone().unwrap_or_else(|| part.name.clone());
+                    let material = part.material.map(|m| {
+                        *file_materials
+                            .entry(key)
+                            .or_insert_with_key(|k| self.scene.add_material(&format!("{}:{k}", path.display()), m))
+                    });
                     // Shading needs normals; a file without them gets smooth ones.
                     let mesh = self
                         .scene

@@ -117,3 +117,19 @@ fn framing_bounds_follow_parent_transforms() {
     let b = world_bounds(&scene.world);
     assert_eq!(b.center(), Vec3::new(10.0, 0.0, 0.0));
 }
+
+#[test]
+fn parts_sharing_an_mtl_material_share_its_entity() {
+    let obj: &'static [u8] =
+        b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\ng a\nusemtl red\nf 1 2 3\ng b\nf 3 2 1\ng c\nusemtl blue\nf 1 3 2\n";
+    let src = MemorySource::new()
+        .with_file(
+            "s.toml",
+            b"[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\n[[objects]]\nmesh = \"t.obj\"\n",
+        )
+        .with_file("t.obj", obj)
+        .with_file("m.mtl", b"newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n");
+    let (scene, _) = load_scene_from(&src, Path::new("s.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let c = scene.counts();
+    assert_eq!((c.meshes, c.instances, c.materials), (3, 3, 2));
+}
