@@ -9,7 +9,7 @@
 //! `usemtl`, `mtllib` and `s`. Every error names the line. Corners are
 //! unified into one index per distinct (position, uv, normal) so vertices
 //! split only at attribute seams; where the file gives no normal, the
-//! smoothing group joins the key and the loader computes angle-weighted
+//! smoothing group joins the key and the loader computes area- and angle-weighted
 //! normals, so `s off` faces are flat and groups do not blend.
 
 use crate::mtl::{MaterialSet, fallback_material, load_materials};

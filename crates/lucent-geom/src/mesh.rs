@@ -125,7 +125,7 @@ impl TriMesh {
         Ok(self)
     }
 
-    /// Adds angle-weighted smooth normals when the mesh has none.
+    /// Adds area- and angle-weighted smooth normals when the mesh has none.
     pub fn with_smooth_normals_if_missing(mut self) -> Self {
         if self.normals.is_none() {
             self.normals = Some(self.compute_smooth_normals());
@@ -187,16 +187,21 @@ impl TriMesh {
             .fold(Aabb::EMPTY, |b, &i| b.grown(self.positions[i as usize]))
     }
 
-    /// Angle-weighted vertex normals (Thurmer and Wuthrich): each face adds its
-    /// unit normal times the corner angle at the vertex. Degenerate faces add
-    /// nothing; a vertex no proper face touches gets the zero vector, which
-    /// shading treats as "use the geometric normal".
+    /// Area- and angle-weighted vertex normals: each face adds its unit
+    /// normal times its area times the corner angle at the vertex. The angle
+    /// (Thurmer and Wuthrich) makes the result independent of how a surface
+    /// is split into triangles around a vertex; the area lets large faces
+    /// outweigh slivers that share the vertex. Degenerate faces add nothing;
+    /// a vertex no proper face touches gets the zero vector, which shading
+    /// treats as "use the geometric normal".
     pub fn compute_smooth_normals(&self) -> Vec<Vec3> {
         let mut acc = vec![Vec3::ZERO; self.positions.len()];
         for (tri_idx, &idx) in self.indices.iter().enumerate() {
             let p = self.triangle(tri_idx);
-            let n = triangle_normal(p).normalize_or_zero();
-            if n == Vec3::ZERO || !n.is_finite() {
+            let cross = triangle_normal(p);
+            // `cross` is the unit normal times twice the area; the constant
+            // factor cancels when the sum is normalised.
+            if cross == Vec3::ZERO || !cross.is_finite() {
                 continue;
             }
             for corner in 0..3 {
@@ -204,7 +209,7 @@ impl TriMesh {
                 let e2 = (p[(corner + 2) % 3] - p[corner]).normalize_or_zero();
                 let angle = e1.dot(e2).clamp(-1.0, 1.0).acos();
                 if angle.is_finite() {
-                    acc[idx[corner] as usize] += angle * n;
+                    acc[idx[corner] as usize] += angle * cross;
                 }
             }
         }
@@ -248,9 +253,10 @@ mod tests {
     }
 
     #[test]
-    fn smooth_normals_are_angle_weighted() {
-        // A vertex shared by one face in the xy plane (90 degree corner) and
-        // two faces in the xz plane (45 degrees each): equal weights.
+    fn smooth_normals_weigh_angle_and_area() {
+        // A vertex shared by one face in the xy plane (90 degree corner, area
+        // 1/2) and two faces in the xz plane (45 degrees each, area 1/2
+        // each): equal angle sums and equal areas, so equal weights.
         let p = vec![
             Vec3::ZERO,
             Vec3::X,
@@ -261,6 +267,20 @@ mod tests {
         let m = TriMesh::new(p, vec![[0, 1, 2], [0, 1, 3], [0, 3, 4]]).expect("valid");
         let n = m.compute_smooth_normals()[0];
         let expected = (Vec3::Z + Vec3::Y).normalize();
+        assert!((n - expected).length() < 1e-6, "{n}");
+
+        // Same corner angles (90 degrees each), but the xz face is four times
+        // larger: its normal weighs four times as much.
+        let p = vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, -2.0),
+        ];
+        let m = TriMesh::new(p, vec![[0, 1, 2], [0, 3, 4]]).expect("valid");
+        let n = m.compute_smooth_normals()[0];
+        let expected = (Vec3::Z + 4.0 * Vec3::Y).normalize();
         assert!((n - expected).length() < 1e-6, "{n}");
     }
 
