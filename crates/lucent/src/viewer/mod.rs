@@ -18,7 +18,7 @@ use crate::{QualityArgs, check_png_path, load_scene};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use input::{FrameInput, ScriptedInput, WindowInput};
-use lucent_nav::OrbitController;
+use lucent_nav::{Buttons, HeldKeys, OrbitController};
 use lucent_render::{RenderSettings, extract};
 use lucent_scene::Shading;
 use lucent_scene::components::OrbitRig;
@@ -103,9 +103,9 @@ fn parse_soak(s: &str) -> Result<f32, String> {
 
 /// How long the window loop waits for a frame before polling input again.
 const POLL: Duration = Duration::from_millis(4);
-/// The camera counts as still once it has not changed for this long, so the
-/// gaps between pointer events in a drag do not start (and cancel) a
-/// full-resolution pass each time.
+/// While a key or button is held, the camera counts as still once it has
+/// not changed for this long, so the gaps between pointer events in a drag
+/// do not start (and cancel) a full-resolution pass each time.
 const STILL_AFTER: Duration = Duration::from_millis(25);
 /// Title updates at most this often.
 const TITLE_EVERY: Duration = Duration::from_millis(100);
@@ -240,6 +240,8 @@ struct ViewState {
     target_fps: Option<f32>,
     generation: u64,
     moving: bool,
+    /// A key or button was held in the previous input frame.
+    was_holding: bool,
     last_change: Instant,
 }
 
@@ -256,6 +258,7 @@ impl ViewState {
             target_fps: args.target_fps,
             generation: 1,
             moving: false,
+            was_holding: false,
             last_change: now,
         };
         view.apply_preset();
@@ -283,13 +286,21 @@ impl ViewState {
             changed_settings = true;
         }
         let moved = self.controller.update(&mut self.rig, &input.nav);
+        // Releasing the last key or button puts the camera at rest at once;
+        // otherwise it rests once it has not changed for a grace period, so
+        // the gaps between pointer events in a drag (or wheel notches in a
+        // spin) do not each start, and cancel, a full-resolution pass.
+        let nav = &input.nav;
+        let holding = nav.keys != HeldKeys::default() || nav.buttons != Buttons::default();
+        let released = self.was_holding && !holding;
+        self.was_holding = holding;
         if moved || changed_settings {
             self.generation += 1;
             self.last_change = now;
-            self.moving = moved;
+            self.moving = moved && !released;
             return true;
         }
-        if self.moving && now.duration_since(self.last_change) >= STILL_AFTER {
+        if self.moving && (released || now.duration_since(self.last_change) >= STILL_AFTER) {
             self.moving = false;
             return true;
         }

@@ -39,13 +39,42 @@ fn moving_bumps_the_generation_and_stillness_follows_after_a_grace() {
     assert!(v.apply(&drag(5.0), t0));
     let r1 = v.request();
     assert!(r1.moving && r1.generation == r0.generation + 1 && r1.rig != r0.rig);
-    // A gap shorter than the grace keeps it moving: no new request.
-    assert!(!v.apply(&FrameInput::default(), t0 + STILL_AFTER / 2));
+    // A pause in the drag shorter than the grace keeps it moving.
+    assert!(!v.apply(&drag(0.0), t0 + STILL_AFTER / 2));
     // Then it turns still, with the same generation (the preview's camera).
-    assert!(v.apply(&FrameInput::default(), t0 + STILL_AFTER));
+    assert!(v.apply(&drag(0.0), t0 + STILL_AFTER));
     let r2 = v.request();
     assert!(!r2.moving && r2.generation == r1.generation && r2.rig == r1.rig);
+    assert!(!v.apply(&drag(0.0), t0 + 2 * STILL_AFTER));
     assert!(!v.apply(&FrameInput::default(), t0 + 2 * STILL_AFTER));
+}
+
+#[test]
+fn releasing_the_button_rests_the_camera_at_once_but_a_wheel_notch_waits() {
+    let t0 = Instant::now();
+    let mut v = view(&ViewArgs::default(), t0);
+    assert!(v.apply(&drag(5.0), t0));
+    // Still holding, not moving: no change before the grace.
+    assert!(!v.apply(&drag(0.0), t0 + STILL_AFTER / 4));
+    assert!(v.request().moving);
+    // Released: at rest now, same generation.
+    let g = v.request().generation;
+    assert!(v.apply(&FrameInput::default(), t0 + STILL_AFTER / 2));
+    assert!(!v.request().moving && v.request().generation == g);
+    // A last change in the same frame as the release is at rest too.
+    v.apply(&drag(5.0), t0);
+    let mut release_and_move = FrameInput::default();
+    release_and_move.nav.wheel = 1.0;
+    assert!(v.apply(&release_and_move, t0));
+    assert!(!v.request().moving && v.request().generation == g + 2);
+    // A wheel notch previews, and rests after the grace.
+    let mut notch = FrameInput::default();
+    notch.nav.wheel = 1.0;
+    assert!(v.apply(&notch, t0));
+    assert!(v.request().moving);
+    assert!(!v.apply(&FrameInput::default(), t0 + STILL_AFTER / 2));
+    assert!(v.apply(&FrameInput::default(), t0 + STILL_AFTER));
+    assert!(!v.request().moving);
 }
 
 #[test]

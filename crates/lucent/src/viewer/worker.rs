@@ -8,9 +8,11 @@
 //! budget from measured costs ([`CostModel`]); when it holds still, it
 //! refines one full-resolution film pass by pass up to the sample cap. A new
 //! request generation cancels a refinement pass in flight and restarts
-//! accumulation; a cancelled pass is never shown.
+//! accumulation; the camera coming to rest cancels a preview in flight (the
+//! full-resolution pass it delays is what the user waits for); a cancelled
+//! pass is never shown.
 
-use lucent_render::{Film, RenderScene, RenderSettings, render_samples, render_samples_cancellable};
+use lucent_render::{Film, RenderScene, RenderSettings, render_samples_cancellable};
 use lucent_scene::components::OrbitRig;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
@@ -147,7 +149,9 @@ struct Shared {
     state: Mutex<State>,
     wake: Condvar,
     /// Set when the generation changes; a refinement pass checks it.
-    cancel: AtomicBool,
+    cancel_refine: AtomicBool,
+    /// Set when the camera comes to rest; a preview checks it.
+    cancel_preview: AtomicBool,
 }
 
 struct State {
@@ -179,7 +183,8 @@ impl Worker {
                 quit: false,
             }),
             wake: Condvar::new(),
-            cancel: AtomicBool::new(false),
+            cancel_refine: AtomicBool::new(false),
+            cancel_preview: AtomicBool::new(false),
         });
         let (tx, frames) = channel();
         let thread_shared = Arc::clone(&shared);
@@ -194,11 +199,15 @@ impl Worker {
     }
 
     /// Replaces the request; a new generation cancels a refinement pass in
-    /// flight. Never blocks on rendering (the lock guards a few words).
+    /// flight, coming to rest cancels a preview. Never blocks on rendering
+    /// (the lock guards a few words).
     pub fn submit(&self, request: Request) {
         let mut state = self.shared.lock();
         if state.request.generation != request.generation {
-            self.shared.cancel.store(true, Ordering::Relaxed);
+            self.shared.cancel_refine.store(true, Ordering::Relaxed);
+        }
+        if state.request.moving && !request.moving {
+            self.shared.cancel_preview.store(true, Ordering::Relaxed);
         }
         state.request = request;
         drop(state);
@@ -228,7 +237,8 @@ impl Worker {
 impl Drop for Worker {
     fn drop(&mut self) {
         self.shared.lock().quit = true;
-        self.shared.cancel.store(true, Ordering::Relaxed);
+        self.shared.cancel_refine.store(true, Ordering::Relaxed);
+        self.shared.cancel_preview.store(true, Ordering::Relaxed);
         self.shared.wake.notify_one();
         if let Some(t) = self.thread.take() {
             let _ = t.join();
@@ -259,6 +269,10 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                     .as_ref()
                     .filter(|(g, _)| *g == r.generation)
                     .map(|(_, f)| f.n_samples());
+                // Cleared under the lock, so a request that comes after the
+                // job is taken always cancels it.
+                shared.cancel_refine.store(false, Ordering::Relaxed);
+                shared.cancel_preview.store(false, Ordering::Relaxed);
                 if r.moving && previewed != Some(r.generation) {
                     break Job::Preview(r);
                 }
@@ -268,16 +282,15 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
             }
         };
-        shared.cancel.store(false, Ordering::Relaxed);
         let frame = match job {
             Job::Preview(r) => {
                 previewed = Some(r.generation);
                 scene.rig = r.rig;
-                Some(preview(&scene, &r, &mut costs))
+                preview(&scene, &r, &mut costs, &shared.cancel_preview)
             }
             Job::Refine(r) => {
                 scene.rig = r.rig;
-                refine(&scene, &r, &mut costs, &mut film, &shared.cancel)
+                refine(&scene, &r, &mut costs, &mut film, &shared.cancel_refine)
             }
         };
         if let Some(frame) = frame
@@ -288,19 +301,20 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
     }
 }
 
-/// One moving frame at the resolution and samples the budget allows.
-fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel) -> Frame {
+/// One moving frame at the resolution and samples the budget allows, or
+/// `None` when the camera came to rest meanwhile.
+fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &AtomicBool) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (scale, spp) = costs.preview_shape(w, h, r.frame_budget_s, r.max_scale);
     let pw = ((w as f32 / scale).round() as u32).clamp(1, w);
     let ph = ((h as f32 / scale).round() as u32).clamp(1, h);
     let mut film = Film::new(pw, ph);
     let start = Instant::now();
-    render_samples(scene, &r.settings, &mut film, 0..spp, &|_| {});
+    render_samples_cancellable(scene, &r.settings, &mut film, 0..spp, cancel)?;
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(u64::from(pw) * u64::from(ph) * u64::from(spp), render_s);
     let pixels = output(&film, w, h, costs);
-    Frame {
+    Some(Frame {
         generation: r.generation,
         rig: r.rig,
         pixels,
@@ -309,7 +323,7 @@ fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel) -> Frame {
         samples: spp,
         refined: false,
         render_s,
-    }
+    })
 }
 
 /// One more full-resolution pass of the still camera, or `None` when a new

@@ -4,6 +4,7 @@
 
 use super::*;
 use lucent_geom::{Affine3A, Vec3, shapes};
+use lucent_render::render_samples;
 use lucent_scene::Scene;
 use lucent_scene::components::{Camera, Light, Material};
 
