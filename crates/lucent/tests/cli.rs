@@ -147,7 +147,18 @@ fn help_lists_the_viewer_controls() {
     let out = lucent().args(["view", "--help"]).output().unwrap();
     let help = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success());
-    for key in ["arrow keys", "mouse drag", "wheel", "Esc"] {
+    for key in [
+        "arrow keys",
+        "mouse drag",
+        "wheel",
+        "F1-F4 or 1-4",
+        "only Whitted exists",
+        "screenshot",
+        "Esc",
+        "--stats",
+        "--max-spp",
+        "--preset",
+    ] {
         assert!(help.contains(key), "{help}");
     }
 }
