@@ -146,6 +146,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     let mut shown = Shown::new(w, h, start);
     let mut out = std::io::stdout().lock();
     let mut last_input = start;
+    let (mut title, mut next_title) = (None::<String>, start);
     loop {
         let now = Instant::now();
         let dt = (now - last_input).as_secs_f32();
@@ -180,16 +181,21 @@ pub fn run(args: ViewArgs) -> Result<()> {
                     // A closed stdout (the reader went away) must not stop the viewer.
                     let _ = writeln!(out, "{}", report.json());
                 }
-                if now >= shown.next_title {
-                    shown.next_title = now + TITLE_EVERY;
-                    window.set_title(&shown.title(&name, &frame, &view));
-                }
+                title = Some(shown.title(&name, &frame, &view));
                 shown.pixels = frame.pixels;
                 if args.frames.is_some_and(|n| shown.count >= n) {
                     break;
                 }
             }
             _ => window.update(),
+        }
+        // The newest frame's title, at most every TITLE_EVERY.
+        let now = Instant::now();
+        if now >= next_title
+            && let Some(t) = title.take()
+        {
+            window.set_title(&t);
+            next_title = now + TITLE_EVERY;
         }
     }
     drop(worker);
@@ -332,7 +338,6 @@ struct Shown {
     start: Instant,
     last: Instant,
     clock: FrameClock,
-    next_title: Instant,
 }
 
 impl Shown {
@@ -345,7 +350,6 @@ impl Shown {
             start,
             last: start,
             clock: FrameClock::default(),
-            next_title: start,
         }
     }
 

@@ -43,13 +43,14 @@ impl FrameReport<'_> {
         let mut s = String::with_capacity(320);
         let _ = write!(
             s,
-            "{{\"frame\":{},\"t_s\":{},\"frame_ms\":{},\"render_ms\":{},\"width\":{},\"height\":{},\"scale\":{},\
+            "{{\"frame\":{},\"t_s\":{},\"frame_ms\":{},\"render_ms\":{},\"output_ms\":{},\"width\":{},\"height\":{},\"scale\":{},\
 \"samples\":{},\"refined\":{},\"moving\":{},\"since_change_ms\":{},\"generation\":{},\"preset\":\"{}\",\
 \"shading\":\"{}\",\"camera\":{{\"R\":{},\"theta\":{},\"phi\":{},\"O\":[{},{},{}]}}}}",
             self.index,
             num(self.t_s),
             num(f64::from(self.frame_s) * 1e3),
             num(f64::from(f.render_s) * 1e3),
+            num(f64::from(f.output_s) * 1e3),
             f.width,
             f.height,
             num(f64::from(f.scale(self.window_width))),
@@ -120,6 +121,7 @@ mod tests {
             samples: 1,
             refined: false,
             render_s: 0.02,
+            output_s: 0.001,
         };
         let report = FrameReport {
             index: 3,
@@ -136,6 +138,7 @@ mod tests {
         assert!(!line.contains('\n') && !line.contains("NaN") && line.contains("\"frame_ms\":null"));
         for field in [
             "\"frame\":3,",
+            "\"render_ms\":20.000000,\"output_ms\":1.000000,",
             "\"width\":320,\"height\":180,\"scale\":2.000000,",
             "\"samples\":1,\"refined\":false,\"moving\":true,",
             "\"generation\":7,",

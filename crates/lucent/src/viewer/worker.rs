@@ -58,6 +58,8 @@ pub struct Frame {
     pub refined: bool,
     /// Seconds spent tracing this frame's pass.
     pub render_s: f32,
+    /// Seconds spent converting the film to window pixels.
+    pub output_s: f32,
 }
 
 impl Frame {
@@ -313,7 +315,7 @@ fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &Ato
     render_samples_cancellable(scene, &r.settings, &mut film, 0..spp, cancel)?;
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(u64::from(pw) * u64::from(ph) * u64::from(spp), render_s);
-    let pixels = output(&film, w, h, costs);
+    let (pixels, output_s) = output(&film, w, h, costs);
     Some(Frame {
         generation: r.generation,
         rig: r.rig,
@@ -323,6 +325,7 @@ fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &Ato
         samples: spp,
         refined: false,
         render_s,
+        output_s,
     })
 }
 
@@ -352,7 +355,7 @@ fn refine(
     }
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(u64::from(w) * u64::from(h) * u64::from(k), render_s);
-    let pixels = output(f, w, h, costs);
+    let (pixels, output_s) = output(f, w, h, costs);
     Some(Frame {
         generation: r.generation,
         rig: r.rig,
@@ -362,16 +365,19 @@ fn refine(
         samples: f.n_samples(),
         refined: true,
         render_s,
+        output_s,
     })
 }
 
-/// Converts a film to window pixels (nearest film pixel), timing it.
-fn output(film: &Film, width: u32, height: u32, costs: &mut CostModel) -> Vec<u32> {
+/// Converts a film to window pixels (nearest film pixel); returns them and
+/// the seconds it took.
+fn output(film: &Film, width: u32, height: u32, costs: &mut CostModel) -> (Vec<u32>, f32) {
     let start = Instant::now();
     let mut pixels = vec![0; width as usize * height as usize];
     upscale(film, &mut pixels, width);
-    costs.observe_output(pixels.len() as u64, start.elapsed().as_secs_f32());
-    pixels
+    let output_s = start.elapsed().as_secs_f32();
+    costs.observe_output(pixels.len() as u64, output_s);
+    (pixels, output_s)
 }
 
 /// Fills `buffer` (0RGB, `buffer_width` wide) with `film`, each window
