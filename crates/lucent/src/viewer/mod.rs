@@ -134,70 +134,33 @@ pub fn run(args: ViewArgs) -> Result<()> {
     // The loop paces itself (it waits for frames up to POLL).
     window.set_target_fps(0);
     let start = Instant::now();
-    let mut view = ViewState::new(rs.rig, scene.settings, &args, start);
+    let view = ViewState::new(rs.rig, scene.settings, &args, start);
     let worker = Worker::spawn(rs, view.request()).context("cannot start the render thread")?;
-    let mut source = match args.soak {
+    let source = match args.soak {
         Some(secs) => Source::Script(
             ScriptedInput::new(args.soak_seed),
             start + Duration::from_secs_f32(secs),
         ),
         None => Source::Window(WindowInput::default()),
     };
-    let mut shown = Shown::new(w, h, start);
-    let mut out = std::io::stdout().lock();
-    let mut last_input = start;
-    let (mut title, mut next_title) = (None::<String>, start);
-    loop {
-        let now = Instant::now();
-        let dt = (now - last_input).as_secs_f32();
-        last_input = now;
-        let input = source.read(&window, dt, now);
-        if input.quit {
-            break;
-        }
-        if input.toggle_integrator {
-            eprintln!("I: only one integrator (Whitted) is available; nothing to switch");
-        }
-        if input.screenshot {
-            save_in_background(shown.pixels.clone(), w, h, screenshot_name());
-        }
-        if view.apply(&input, now) {
-            worker.submit(view.request());
-        }
-        if !rig_is_finite(&view.rig) {
-            bail!("the camera became non-finite: {:?}", view.rig);
-        }
-        if worker.is_dead() {
-            bail!("the render thread stopped");
-        }
-        match worker.latest_frame(POLL) {
-            Some(frame) if frame.generation >= shown.generation => {
-                window
-                    .update_with_buffer(&frame.pixels, w as usize, h as usize)
-                    .map_err(|e| anyhow!("the window stopped accepting frames: {e}"))?;
-                let now = Instant::now();
-                let report = shown.record(&frame, now, &view);
-                if args.stats {
-                    // A closed stdout (the reader went away) must not stop the viewer.
-                    let _ = writeln!(out, "{}", report.json());
-                }
-                title = Some(shown.title(&name, &frame, &view));
-                shown.pixels = frame.pixels;
-                if args.frames.is_some_and(|n| shown.count >= n) {
-                    break;
-                }
-            }
-            _ => window.update(),
-        }
-        // The newest frame's title, at most every TITLE_EVERY.
-        let now = Instant::now();
-        if now >= next_title
-            && let Some(t) = title.take()
-        {
-            window.set_title(&t);
-            next_title = now + TITLE_EVERY;
-        }
-    }
+    let mut app = App {
+        window,
+        name,
+        size: (w, h),
+        view,
+        worker,
+        source,
+        shown: Shown::new(w, h, start),
+        last_input: start,
+        title: None,
+        next_title: start,
+        stats: args.stats,
+        max_frames: args.frames,
+    };
+    while app.step()? {}
+    let App {
+        worker, source, shown, ..
+    } = app;
     drop(worker);
     if let Source::Script(script, _) = &source {
         eprintln!(
@@ -211,6 +174,78 @@ pub fn run(args: ViewArgs) -> Result<()> {
         save(&shown.pixels, w, h, path)?;
     }
     Ok(())
+}
+
+/// The window loop's state.
+struct App {
+    window: Window,
+    name: String,
+    size: (u32, u32),
+    view: ViewState,
+    worker: Worker,
+    source: Source,
+    shown: Shown,
+    last_input: Instant,
+    /// The newest frame's title, until the rate limit lets it through.
+    title: Option<String>,
+    next_title: Instant,
+    stats: bool,
+    max_frames: Option<u64>,
+}
+
+impl App {
+    /// One loop iteration: input, camera, request, then the newest frame
+    /// if one came within `POLL`. Returns whether to go on.
+    fn step(&mut self) -> Result<bool> {
+        let now = Instant::now();
+        let dt = now.duration_since(self.last_input).as_secs_f32();
+        self.last_input = now;
+        let input = self.source.read(&self.window, dt, now);
+        if input.quit {
+            return Ok(false);
+        }
+        if input.toggle_integrator {
+            eprintln!("I: only one integrator (Whitted) is available; nothing to switch");
+        }
+        let (w, h) = self.size;
+        if input.screenshot {
+            save_in_background(self.shown.pixels.clone(), w, h, screenshot_name());
+        }
+        if self.view.apply(&input, now) {
+            self.worker.submit(self.view.request());
+        }
+        if !rig_is_finite(&self.view.rig) {
+            bail!("the camera became non-finite: {:?}", self.view.rig);
+        }
+        if self.worker.is_dead() {
+            bail!("the render thread stopped");
+        }
+        let mut go_on = true;
+        match self.worker.latest_frame(POLL) {
+            Some(frame) if frame.generation >= self.shown.generation => {
+                self.window
+                    .update_with_buffer(&frame.pixels, w as usize, h as usize)
+                    .map_err(|e| anyhow!("the window stopped accepting frames: {e}"))?;
+                let report = self.shown.record(&frame, Instant::now(), &self.view);
+                if self.stats {
+                    // A closed stdout (the reader went away) must not stop the viewer.
+                    let _ = writeln!(std::io::stdout(), "{}", report.json());
+                }
+                self.title = Some(self.shown.title(&self.name, &frame, &self.view));
+                self.shown.pixels = frame.pixels;
+                go_on = self.max_frames.is_none_or(|n| self.shown.count < n);
+            }
+            _ => self.window.update(),
+        }
+        let now = Instant::now();
+        if now >= self.next_title
+            && let Some(t) = self.title.take()
+        {
+            self.window.set_title(&t);
+            self.next_title = now + TITLE_EVERY;
+        }
+        Ok(go_on)
+    }
 }
 
 /// Where input comes from.
