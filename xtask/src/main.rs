@@ -5,11 +5,13 @@
 //! - `snap [--review | --accept]`: run the image snapshot tests and review
 //!   or accept what changed;
 //! - `tidy`: repository rules (also run as a test, see `tidy.rs`);
-//! - `render SCENE [--out FILE.png] [ARGS...]`: render with a release build.
+//! - `render SCENE [--out FILE.png] [ARGS...]`: render with a release build;
+//! - `view-bench`, `soak`: drive the viewer under Xvfb (see `viewer.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod tidy;
+mod viewer;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -22,7 +24,14 @@ commands:
                            installed) or accept new snapshots
   tidy                     check repository rules
   render SCENE [--out FILE.png] [lucent render options...]
-                           render with a release build (default out: target/render.png)";
+                           render with a release build (default out: target/render.png)
+  view-bench [--size WxH] [--cycles N] [--rotate-s S] [--no-build]
+                           drag-rotate the viewer with xdotool (under Xvfb if needed);
+                           one JSON line: fps while rotating, settled scale,
+                           release to first full-resolution frame
+  soak [--seconds S] [--seed N] [--size WxH] [--no-build]
+                           random input for S seconds (default 60): no panic,
+                           finite camera, flat memory; one JSON line";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -31,6 +40,8 @@ fn main() -> ExitCode {
         Some("snap") => snap(&args[1..]),
         Some("tidy") => tidy::check(&root()).map_err(|problems| problems.join("\n")),
         Some("render") => render(&args[1..]),
+        Some("view-bench") => viewer::bench(&args[1..]),
+        Some("soak") => viewer::soak(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

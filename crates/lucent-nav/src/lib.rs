@@ -2,18 +2,33 @@
 //!
 //! The report's navigation (S3): arrow keys pan (move the orbit centre O),
 //! dragging rotates (theta up and down, phi left and right) and the wheel
-//! zooms (changes R). [`OrbitController::update`] applies one frame of
-//! [`NavInput`] to an [`OrbitRig`]: panning is per second of frame time and
-//! scaled by R, so it feels the same at any frame rate and scale; zooming is
-//! multiplicative. The rig is sanitised after every step (theta kept off the
-//! poles, R within bounds, no NaN), whatever the input.
+//! zooms (changes R). A window layer fills one [`NavInput`] per frame with
+//! what the user holds and moves (keys, buttons, pointer delta, wheel, frame
+//! time); [`OrbitController::update`] applies it to the report's
+//! [`OrbitRig`]:
+//!
+//! - held pan keys move O in the camera plane at `pan_speed` radii per
+//!   second of frame time, so motion is smooth at any frame rate and feels
+//!   the same at any scale;
+//! - dragging with the primary button turns theta and phi by a fixed angle
+//!   per pixel; dragging with the middle or secondary button pans, the
+//!   scene following the pointer;
+//! - the wheel scales R by a fixed factor per notch (multiplicative, so each
+//!   notch feels the same near and far).
+//!
+//! The rig is sanitised after every step: theta stays within
+//! [`THETA_LIMIT`](lucent_scene::camera::THETA_LIMIT) of the horizon (the
+//! report's axes stay orthonormal and never flip), R within
+//! [`MIN_RADIUS`](lucent_scene::camera::MIN_RADIUS) and
+//! [`MAX_RADIUS`](lucent_scene::camera::MAX_RADIUS), and NaN or infinite
+//! input is ignored.
 //!
 //! ```
 //! use lucent_nav::{NavInput, OrbitController};
 //! use lucent_scene::components::OrbitRig;
 //! let ctl = OrbitController::new(OrbitRig::default());
 //! let mut rig = OrbitRig::default();
-//! let zoom_in = NavInput { zoom: 1.0, dt: 1.0 / 60.0, ..NavInput::default() };
+//! let zoom_in = NavInput { wheel: 1.0, dt: 1.0 / 60.0, ..NavInput::default() };
 //! assert!(ctl.update(&mut rig, &zoom_in));
 //! assert!(rig.radius < OrbitRig::default().radius);
 //! ```
@@ -23,16 +38,53 @@ use lucent_geom::Vec2;
 use lucent_scene::Scene;
 use lucent_scene::components::OrbitRig;
 
+/// Pan keys held down during a frame (arrow keys or WASD in the viewer).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HeldKeys {
+    /// Pan left.
+    pub left: bool,
+    /// Pan right.
+    pub right: bool,
+    /// Pan up.
+    pub up: bool,
+    /// Pan down.
+    pub down: bool,
+}
+
+impl HeldKeys {
+    /// The pan direction on screen: x to the right, y up, each -1, 0 or 1
+    /// (opposite keys cancel).
+    pub fn axis(&self) -> Vec2 {
+        let axis = |neg: bool, pos: bool| f32::from(u8::from(pos)) - f32::from(u8::from(neg));
+        Vec2::new(axis(self.left, self.right), axis(self.down, self.up))
+    }
+}
+
+/// Pointer buttons held down during a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Buttons {
+    /// The primary (left) button: dragging rotates.
+    pub primary: bool,
+    /// The middle button: dragging pans.
+    pub middle: bool,
+    /// The secondary (right) button: dragging pans.
+    pub secondary: bool,
+}
+
 /// One frame of user input, in device-independent terms.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NavInput {
-    /// Held pan keys: x to the right, y up, each -1, 0 or 1.
-    pub pan: Vec2,
-    /// Pointer movement while rotating, in pixels (x right, y down).
-    pub drag: Vec2,
-    /// Wheel notches this frame; positive zooms in.
-    pub zoom: f32,
-    /// Seconds since the previous frame.
+    /// Pan keys held.
+    pub keys: HeldKeys,
+    /// Buttons held.
+    pub buttons: Buttons,
+    /// Pointer movement since the previous frame, in pixels (x right,
+    /// y down); it moves the camera only while a button is held.
+    pub pointer_delta: Vec2,
+    /// Wheel notches turned this frame; positive (away from the user) zooms
+    /// in.
+    pub wheel: f32,
+    /// Seconds since the previous frame (held keys move this long).
     pub dt: f32,
     /// Return to the starting view.
     pub reset: bool,
@@ -41,8 +93,10 @@ pub struct NavInput {
 /// How fast input moves the rig.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NavParams {
-    /// Pan speed in orbit radii per second.
+    /// Key pan speed in orbit radii per second.
     pub pan_speed: f32,
+    /// Drag pan in orbit radii per pixel.
+    pub pan_per_pixel: f32,
     /// Rotation in radians per pixel dragged.
     pub rotate_per_pixel: f32,
     /// Factor applied to R per wheel notch towards the centre.
@@ -53,11 +107,16 @@ impl Default for NavParams {
     fn default() -> Self {
         Self {
             pan_speed: 0.8,
+            pan_per_pixel: 0.002,
             rotate_per_pixel: 0.006,
             zoom_per_notch: 0.9,
         }
     }
 }
+
+/// The longest frame time a step moves for: a hitch (a frame that took
+/// longer) moves no further, so a stall never makes the camera jump.
+pub const MAX_STEP_DT: f32 = 0.25;
 
 /// Drives an orbit rig; remembers the starting view for reset.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -85,35 +144,45 @@ impl OrbitController {
             return *rig != before;
         }
         let p = &self.params;
-        // A frame longer than a quarter second (a hitch) moves no further
-        // than one that long, so a stall never makes the camera jump.
         let dt = if input.dt.is_finite() {
-            input.dt.clamp(0.0, 0.25)
+            input.dt.clamp(0.0, MAX_STEP_DT)
         } else {
             0.0
         };
-        let finite2 = |v: Vec2| if v.is_finite() { v } else { Vec2::ZERO };
-        let pan = finite2(input.pan).clamp(Vec2::splat(-1.0), Vec2::splat(1.0));
-        let drag = finite2(input.drag);
-        let zoom = if input.zoom.is_finite() {
-            input.zoom.clamp(-50.0, 50.0)
+        let delta = if input.pointer_delta.is_finite() {
+            input.pointer_delta.clamp(Vec2::splat(-1e5), Vec2::splat(1e5))
+        } else {
+            Vec2::ZERO
+        };
+        let wheel = if input.wheel.is_finite() {
+            input.wheel.clamp(-50.0, 50.0)
         } else {
             0.0
         };
+        let [x, y, _] = rig.axes();
 
-        // Pan: move O in the camera plane. The camera's x axis points to the
-        // left of the picture, so "right" is -x.
-        if pan != Vec2::ZERO {
-            let [x, y, _] = rig.axes();
+        // Keys pan: O moves the way the key points, in the camera plane. The
+        // camera's x axis points to the left of the picture, so "right" is -x.
+        let keys = input.keys.axis();
+        if keys != Vec2::ZERO {
             let step = rig.radius * p.pan_speed * dt;
-            rig.center += step * (pan.x * -x + pan.y * y);
+            rig.center += step * (keys.x * -x + keys.y * y);
         }
-        // Rotate: dragging right swings the camera left around O (phi grows
-        // towards the camera's x axis), dragging down raises it.
-        rig.phi += drag.x * p.rotate_per_pixel;
-        rig.theta += drag.y * p.rotate_per_pixel;
+        // A middle or secondary drag pans the other way: the scene follows
+        // the pointer, so O moves against it (pointer y grows downwards).
+        if input.buttons.middle || input.buttons.secondary {
+            let step = rig.radius * p.pan_per_pixel;
+            rig.center += step * (delta.x * x + delta.y * y);
+        }
+        // A primary drag rotates: dragging right swings the camera left
+        // around O (phi grows towards the camera's x axis), dragging down
+        // raises it.
+        if input.buttons.primary {
+            rig.phi += delta.x * p.rotate_per_pixel;
+            rig.theta += delta.y * p.rotate_per_pixel;
+        }
         // Zoom: multiplicative, so each notch feels the same at any distance.
-        rig.radius *= p.zoom_per_notch.powf(zoom);
+        rig.radius *= p.zoom_per_notch.powf(wheel);
         *rig = rig.sanitized();
         *rig != before
     }
@@ -127,148 +196,4 @@ impl OrbitController {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use lucent_geom::Vec3;
-    use lucent_scene::camera::{MAX_RADIUS, MIN_RADIUS, THETA_LIMIT};
-
-    fn rig() -> OrbitRig {
-        OrbitRig {
-            center: Vec3::ZERO,
-            radius: 2.0,
-            theta: 0.0,
-            phi: std::f32::consts::FRAC_PI_2,
-        }
-    }
-
-    #[test]
-    fn pan_moves_the_centre_along_the_screen_scaled_by_radius_and_time() {
-        let ctl = OrbitController::new(rig());
-        let mut r = rig();
-        // Camera at +z looking at -z: picture right is world +x.
-        let input = NavInput {
-            pan: Vec2::new(1.0, 0.0),
-            dt: 0.2,
-            ..NavInput::default()
-        };
-        assert!(ctl.update(&mut r, &input));
-        assert!(
-            r.center.abs_diff_eq(Vec3::new(2.0 * 0.8 * 0.2, 0.0, 0.0), 1e-5),
-            "{}",
-            r.center
-        );
-        let up = NavInput {
-            pan: Vec2::new(0.0, 1.0),
-            dt: 0.2,
-            ..NavInput::default()
-        };
-        let mut r = rig();
-        ctl.update(&mut r, &up);
-        assert!(r.center.y > 0.0 && r.center.x.abs() < 1e-6);
-        // Two frames of dt/2 move as far as one of dt.
-        let mut a = rig();
-        let mut b = rig();
-        ctl.update(&mut a, &input);
-        let half = NavInput { dt: 0.1, ..input };
-        ctl.update(&mut b, &half);
-        ctl.update(&mut b, &half);
-        assert!(a.center.abs_diff_eq(b.center, 1e-5));
-    }
-
-    #[test]
-    fn drag_rotates_and_wheel_zooms_multiplicatively() {
-        let ctl = OrbitController::new(rig());
-        let mut r = rig();
-        let drag = NavInput {
-            drag: Vec2::new(10.0, -5.0),
-            ..NavInput::default()
-        };
-        ctl.update(&mut r, &drag);
-        assert!((r.phi - (std::f32::consts::FRAC_PI_2 + 0.06)).abs() < 1e-6);
-        assert!((r.theta + 0.03).abs() < 1e-6);
-        let mut r = rig();
-        let wheel = NavInput {
-            zoom: 2.0,
-            ..NavInput::default()
-        };
-        ctl.update(&mut r, &wheel);
-        assert!((r.radius - 2.0 * 0.81).abs() < 1e-5);
-        let out = NavInput {
-            zoom: -2.0,
-            ..NavInput::default()
-        };
-        ctl.update(&mut r, &out);
-        assert!((r.radius - 2.0).abs() < 1e-5);
-    }
-
-    #[test]
-    fn update_scene_moves_the_active_camera_only() {
-        use lucent_scene::components::Camera;
-        let mut scene = Scene::default();
-        let ctl = OrbitController::new(rig());
-        let zoom = NavInput {
-            zoom: 1.0,
-            ..NavInput::default()
-        };
-        assert!(!ctl.update_scene(&mut scene, &zoom), "no camera: nothing to move");
-        let active = scene.add_camera("a", Camera::default(), rig());
-        let other = scene.add_camera("b", Camera::default(), rig());
-        assert!(ctl.update_scene(&mut scene, &zoom));
-        let radius = |e| scene.world.get::<&OrbitRig>(e).map(|r| r.radius).unwrap_or_default();
-        assert!((radius(active) - 1.8).abs() < 1e-6);
-        assert_eq!(radius(other), 2.0);
-    }
-
-    #[test]
-    fn reset_returns_home_and_idle_input_changes_nothing() {
-        let ctl = OrbitController::new(rig());
-        let mut r = OrbitRig { radius: 7.0, ..rig() };
-        assert!(!ctl.update(&mut rig(), &NavInput::default()));
-        assert!(ctl.update(
-            &mut r,
-            &NavInput {
-                reset: true,
-                ..NavInput::default()
-            }
-        ));
-        assert_eq!(r, rig());
-    }
-
-    #[test]
-    fn thousands_of_extreme_steps_keep_the_rig_finite_and_bounded() {
-        let ctl = OrbitController::new(rig());
-        let mut r = rig();
-        let inputs = [
-            NavInput {
-                drag: Vec2::new(0.0, 1e6),
-                ..NavInput::default()
-            },
-            NavInput {
-                zoom: 50.0,
-                ..NavInput::default()
-            },
-            NavInput {
-                zoom: -50.0,
-                ..NavInput::default()
-            },
-            NavInput {
-                pan: Vec2::new(1.0, 1.0),
-                dt: f32::NAN,
-                drag: Vec2::NAN,
-                zoom: f32::INFINITY,
-                reset: false,
-            },
-            NavInput {
-                pan: Vec2::new(-1.0, 1.0),
-                dt: 1e9,
-                ..NavInput::default()
-            },
-        ];
-        for i in 0..5000 {
-            ctl.update(&mut r, &inputs[i % inputs.len()]);
-            assert!(r.center.is_finite() && r.radius.is_finite() && r.theta.is_finite() && r.phi.is_finite());
-            assert!(r.theta.abs() <= THETA_LIMIT && (MIN_RADIUS..=MAX_RADIUS).contains(&r.radius));
-            assert!(r.world_from_camera().is_finite());
-        }
-    }
-}
+mod tests;

@@ -41,4 +41,7 @@ pub use camera::PinholeCamera;
 pub use extract::{ExtractError, RenderInstance, RenderScene, SceneFeatures, extract};
 pub use film::{Film, ImageStats};
 pub use lucent_scene::{RenderSettings, Shading};
-pub use render::{RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, with_threads};
+pub use render::{
+    RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, render_samples_cancellable,
+    with_threads,
+};

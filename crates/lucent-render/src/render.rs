@@ -5,7 +5,7 @@ use crate::{Film, PinholeCamera, RenderScene, RenderSettings};
 use lucent_geom::{Pcg32, hash_u64};
 use rayon::prelude::*;
 use std::ops::Range;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 /// Runs `f` on a pool of `n_threads` worker threads (0 means one per CPU),
@@ -98,7 +98,9 @@ pub fn render(scene: &RenderScene, settings: &RenderSettings, progress: &(dyn Fn
 /// Sample 0 goes through the pixel centre, as the report's one ray per
 /// pixel did; later samples are jittered uniformly over the pixel from a
 /// random stream keyed by (seed, pixel, sample), so the result is the same
-/// whatever the thread count.
+/// whatever the thread count. A film of a fraction of the final size (a
+/// preview) sees the same view: the camera's field of view does not depend
+/// on the resolution.
 pub fn render_samples(
     scene: &RenderScene,
     settings: &RenderSettings,
@@ -106,17 +108,74 @@ pub fn render_samples(
     samples: Range<u32>,
     progress: &(dyn Fn(usize) + Sync),
 ) -> RayStats {
+    let never = AtomicBool::new(false);
+    let stats = trace_rows(scene, settings, film, samples.clone(), progress, &never);
+    film.n_samples += samples.len() as u32;
+    stats
+}
+
+/// [`render_samples`] that gives up early once `cancel` reads `true`, for
+/// interactive use (a camera change makes a pass in flight worthless).
+///
+/// `cancel` is checked before each image row, so the pass stops within
+/// about one row's work. Returns `None` when cancelled: the film then holds
+/// a partial pass (its sample count is unchanged) and must be
+/// [cleared](Film::clear) before it is shown or refined further. A pass that
+/// is not cancelled adds exactly what [`render_samples`] adds.
+///
+/// ```
+/// use lucent_render::{extract, Film, RenderSettings, render_samples_cancellable};
+/// use lucent_scene::{Scene, components::{Camera, OrbitRig}};
+/// use std::sync::atomic::AtomicBool;
+/// let mut scene = Scene::default();
+/// scene.add_camera("cam", Camera::default(), OrbitRig::default());
+/// let rs = extract(&scene)?;
+/// let mut film = Film::new(8, 4);
+/// let go = AtomicBool::new(false);
+/// let settings = RenderSettings::default();
+/// assert!(render_samples_cancellable(&rs, &settings, &mut film, 0..1, &go).is_some());
+/// let stop = AtomicBool::new(true);
+/// assert!(render_samples_cancellable(&rs, &settings, &mut film, 1..2, &stop).is_none());
+/// assert_eq!(film.n_samples(), 1);
+/// # Ok::<(), lucent_render::ExtractError>(())
+/// ```
+pub fn render_samples_cancellable(
+    scene: &RenderScene,
+    settings: &RenderSettings,
+    film: &mut Film,
+    samples: Range<u32>,
+    cancel: &AtomicBool,
+) -> Option<RayStats> {
+    let stats = trace_rows(scene, settings, film, samples.clone(), &|_| {}, cancel);
+    if cancel.load(Ordering::Relaxed) {
+        return None;
+    }
+    film.n_samples += samples.len() as u32;
+    Some(stats)
+}
+
+/// Adds `samples` to each row of `film` not started before `cancel` was set.
+fn trace_rows(
+    scene: &RenderScene,
+    settings: &RenderSettings,
+    film: &mut Film,
+    samples: Range<u32>,
+    progress: &(dyn Fn(usize) + Sync),
+    cancel: &AtomicBool,
+) -> RayStats {
     let camera = PinholeCamera::new(&scene.camera, &scene.rig, film.width(), film.height());
     let tracer = Whitted::new(scene, settings);
     let width = film.width() as usize;
     let seed = settings.seed;
     let rows_done = AtomicUsize::new(0);
-    let stats = film
-        .sum
+    film.sum
         .par_chunks_mut(width.max(1))
         .enumerate()
         .map(|(row, pixels)| {
             let mut stats = RayStats::default();
+            if cancel.load(Ordering::Relaxed) {
+                return stats;
+            }
             for (col, px) in pixels.iter_mut().enumerate() {
                 let pixel_idx = (row * width + col) as u64;
                 for s in samples.clone() {
@@ -133,7 +192,70 @@ pub fn render_samples(
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
             stats
         })
-        .reduce(RayStats::default, |a, b| a + b);
-    film.n_samples += samples.len() as u32;
-    stats
+        .reduce(RayStats::default, |a, b| a + b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::extract;
+    use lucent_geom::{Affine3A, Vec3, shapes};
+    use lucent_scene::Scene;
+    use lucent_scene::components::{Camera, Light, Material, OrbitRig};
+
+    fn scene() -> RenderScene {
+        let mut scene = Scene::default();
+        let mesh = scene.add_mesh("ball", shapes::icosphere(2));
+        let mat = scene.add_material("white", Material::default());
+        scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
+        scene.add_light(
+            "sun",
+            Light::Directional {
+                to_light: Vec3::Y,
+                intensity: Vec3::ONE,
+            },
+        );
+        scene.add_camera("cam", Camera::default(), OrbitRig::default());
+        match extract(&scene) {
+            Ok(rs) => rs,
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    #[test]
+    fn an_uncancelled_pass_matches_render_samples_and_a_cancelled_one_adds_nothing() {
+        let rs = scene();
+        let settings = RenderSettings {
+            width: 24,
+            height: 16,
+            ..RenderSettings::default()
+        };
+        let mut plain = Film::new(24, 16);
+        let stats = render_samples(&rs, &settings, &mut plain, 0..2, &|_| {});
+        let mut film = Film::new(24, 16);
+        let go = AtomicBool::new(false);
+        assert_eq!(
+            render_samples_cancellable(&rs, &settings, &mut film, 0..2, &go),
+            Some(stats)
+        );
+        assert_eq!(film, plain, "same sums, same sample count");
+        let stop = AtomicBool::new(true);
+        assert_eq!(render_samples_cancellable(&rs, &settings, &mut film, 2..3, &stop), None);
+        assert_eq!(film.n_samples(), 2);
+        assert_eq!(film.to_srgb8(), plain.to_srgb8(), "no row was started after the cancel");
+    }
+
+    #[test]
+    fn a_preview_film_sees_the_same_view_at_a_lower_resolution() {
+        let rs = scene();
+        let settings = RenderSettings::default();
+        let mut full = Film::new(64, 48);
+        let mut half = Film::new(32, 24);
+        render_samples(&rs, &settings, &mut full, 0..1, &|_| {});
+        render_samples(&rs, &settings, &mut half, 0..1, &|_| {});
+        // The centre of the ball lands on the centre of both images.
+        let lum = |f: &Film, x, y| crate::film::luminance(f.pixel(x, y));
+        assert!(lum(&full, 32, 24) > 0.1 && lum(&half, 16, 12) > 0.1);
+        assert!((lum(&full, 32, 24) - lum(&half, 16, 12)).abs() < 0.05);
+    }
 }

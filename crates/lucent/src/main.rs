@@ -23,7 +23,8 @@ use std::process::ExitCode;
 #[command(
     name = "lucent",
     version,
-    about = "A Whitted ray tracer over an ECS scene, with an interactive viewer."
+    about = "A Whitted ray tracer over an ECS scene, with an interactive viewer.",
+    after_help = viewer::CONTROLS
 )]
 struct Cli {
     #[command(subcommand)]

@@ -144,10 +144,28 @@ fn viewer_without_a_display_points_to_headless_rendering() {
 
 #[test]
 fn help_lists_the_viewer_controls() {
+    // The viewer is the default command, so plain --help lists its keys too.
+    let out = lucent().arg("--help").output().unwrap();
+    let help = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && help.contains("Controls:") && help.contains("left mouse drag"),
+        "{help}"
+    );
     let out = lucent().args(["view", "--help"]).output().unwrap();
     let help = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success());
-    for key in ["arrow keys", "mouse drag", "wheel", "Esc"] {
+    for key in [
+        "arrow keys",
+        "mouse drag",
+        "wheel",
+        "F1-F4 or 1-4",
+        "only Whitted exists",
+        "screenshot",
+        "Esc",
+        "--stats",
+        "--max-spp",
+        "--preset",
+    ] {
         assert!(help.contains(key), "{help}");
     }
 }

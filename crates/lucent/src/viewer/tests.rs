@@ -1,0 +1,145 @@
+//! Tests of the window loop's state, without a window: what bumps the
+//! request generation, when the camera counts as still, and how presets and
+//! flags shape the request.
+
+use super::*;
+use lucent_geom::Vec2;
+use lucent_nav::{Buttons, NavInput};
+
+fn view(args: &ViewArgs, now: Instant) -> ViewState {
+    let settings = RenderSettings {
+        max_depth: 5,
+        ..RenderSettings::default()
+    };
+    ViewState::new(OrbitRig::default(), settings, args, now)
+}
+
+fn drag(dx: f32) -> FrameInput {
+    FrameInput {
+        nav: NavInput {
+            buttons: Buttons {
+                primary: true,
+                ..Buttons::default()
+            },
+            pointer_delta: Vec2::new(dx, 0.0),
+            dt: 0.01,
+            ..NavInput::default()
+        },
+        ..FrameInput::default()
+    }
+}
+
+#[test]
+fn moving_bumps_the_generation_and_stillness_follows_after_a_grace() {
+    let t0 = Instant::now();
+    let mut v = view(&ViewArgs::default(), t0);
+    let r0 = v.request();
+    assert!(!r0.moving);
+    assert!(!v.apply(&FrameInput::default(), t0), "idle input changes nothing");
+    assert!(v.apply(&drag(5.0), t0));
+    let r1 = v.request();
+    assert!(r1.moving && r1.generation == r0.generation + 1 && r1.rig != r0.rig);
+    // A pause in the drag shorter than the grace keeps it moving.
+    assert!(!v.apply(&drag(0.0), t0 + STILL_AFTER / 2));
+    // Then it turns still, with the same generation (the preview's camera).
+    assert!(v.apply(&drag(0.0), t0 + STILL_AFTER));
+    let r2 = v.request();
+    assert!(!r2.moving && r2.generation == r1.generation && r2.rig == r1.rig);
+    assert!(!v.apply(&drag(0.0), t0 + 2 * STILL_AFTER));
+    assert!(!v.apply(&FrameInput::default(), t0 + 2 * STILL_AFTER));
+}
+
+#[test]
+fn releasing_the_button_rests_the_camera_at_once_but_a_wheel_notch_waits() {
+    let t0 = Instant::now();
+    let mut v = view(&ViewArgs::default(), t0);
+    assert!(v.apply(&drag(5.0), t0));
+    // Still holding, not moving: no change before the grace.
+    assert!(!v.apply(&drag(0.0), t0 + STILL_AFTER / 4));
+    assert!(v.request().moving);
+    // Released: at rest now, same generation.
+    let g = v.request().generation;
+    assert!(v.apply(&FrameInput::default(), t0 + STILL_AFTER / 2));
+    assert!(!v.request().moving && v.request().generation == g);
+    // A last change in the same frame as the release is at rest too.
+    v.apply(&drag(5.0), t0);
+    let mut release_and_move = FrameInput::default();
+    release_and_move.nav.wheel = 1.0;
+    assert!(v.apply(&release_and_move, t0));
+    assert!(!v.request().moving && v.request().generation == g + 2);
+    // A wheel notch previews, and rests after the grace.
+    let mut notch = FrameInput::default();
+    notch.nav.wheel = 1.0;
+    assert!(v.apply(&notch, t0));
+    assert!(v.request().moving);
+    assert!(!v.apply(&FrameInput::default(), t0 + STILL_AFTER / 2));
+    assert!(v.apply(&FrameInput::default(), t0 + STILL_AFTER));
+    assert!(!v.request().moving);
+}
+
+#[test]
+fn presets_and_shading_restart_accumulation_without_moving() {
+    let t0 = Instant::now();
+    let mut v = view(&ViewArgs::default(), t0);
+    let g = v.request().generation;
+    assert_eq!(v.request().max_spp, PRESETS[DEFAULT_PRESET].max_spp);
+    // Picking the preset already in use changes nothing.
+    let same = FrameInput {
+        preset: Some(DEFAULT_PRESET),
+        ..FrameInput::default()
+    };
+    assert!(!v.apply(&same, t0));
+    let draft = FrameInput {
+        preset: Some(0),
+        ..FrameInput::default()
+    };
+    assert!(v.apply(&draft, t0));
+    let r = v.request();
+    assert!(!r.moving && r.generation == g + 1);
+    assert_eq!((r.max_spp, r.settings.max_depth), (PRESETS[0].max_spp, 1));
+    assert!((r.frame_budget_s - 1.0 / PRESETS[0].target_fps).abs() < 1e-6);
+    let shading = FrameInput {
+        toggle_shading: true,
+        ..FrameInput::default()
+    };
+    assert!(v.apply(&shading, t0));
+    assert_eq!(v.request().settings.shading, Shading::Phong);
+    assert_eq!(v.request().generation, g + 2);
+    // Back to a preset without a depth cap: the scene's depth returns.
+    let quality = FrameInput {
+        preset: Some(2),
+        ..FrameInput::default()
+    };
+    assert!(v.apply(&quality, t0));
+    assert_eq!(v.request().settings.max_depth, 5);
+    // The integrator key changes nothing: there is only one integrator.
+    let integrator = FrameInput {
+        toggle_integrator: true,
+        ..FrameInput::default()
+    };
+    assert!(!v.apply(&integrator, t0));
+}
+
+#[test]
+fn flags_override_every_preset() {
+    let args = ViewArgs {
+        max_spp: Some(3),
+        target_fps: Some(10.0),
+        preset: Some(4),
+        ..ViewArgs::default()
+    };
+    let t0 = Instant::now();
+    let mut v = view(&args, t0);
+    assert_eq!(PRESETS[v.preset].name, "final");
+    for (p, preset) in PRESETS.iter().enumerate() {
+        let pick = FrameInput {
+            preset: Some(p),
+            ..FrameInput::default()
+        };
+        v.apply(&pick, t0);
+        let r = v.request();
+        assert_eq!(r.max_spp, 3);
+        assert!((r.frame_budget_s - 0.1).abs() < 1e-6);
+        assert_eq!(r.max_scale, preset.max_scale);
+    }
+}

@@ -1,0 +1,403 @@
+//! The viewer's render thread: it owns the render scene and all tracing
+//! (through lucent-render's rayon pool), so the window loop never waits on
+//! a render.
+//!
+//! The window loop [`submit`](Worker::submit)s the latest [`Request`] (camera,
+//! settings, whether the camera is moving) and picks up finished [`Frame`]s.
+//! While the camera moves, the worker renders previews sized to the frame
+//! budget from measured costs ([`CostModel`]); when it holds still, it
+//! refines one full-resolution film pass by pass up to the sample cap. A new
+//! request generation cancels a refinement pass in flight and restarts
+//! accumulation; the camera coming to rest cancels a preview in flight (the
+//! full-resolution pass it delays is what the user waits for); a cancelled
+//! pass is never shown.
+
+use lucent_render::{Film, RenderScene, RenderSettings, render_samples_cancellable};
+use lucent_scene::components::OrbitRig;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// What the window loop wants shown.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Request {
+    /// Bumped whenever the camera or the settings change; frames carry it.
+    pub generation: u64,
+    /// Camera pose.
+    pub rig: OrbitRig,
+    /// Render settings at full resolution (`width` x `height` is the window).
+    pub settings: RenderSettings,
+    /// The camera changed in the latest input frame: render a preview.
+    pub moving: bool,
+    /// Seconds a frame may take while moving.
+    pub frame_budget_s: f32,
+    /// Coarsest preview scale (window pixels per rendered pixel per axis).
+    pub max_scale: f32,
+    /// Samples per pixel to accumulate while still.
+    pub max_spp: u32,
+}
+
+/// A finished image, upscaled to the window.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// The request generation it shows.
+    pub generation: u64,
+    /// The camera it was rendered from.
+    pub rig: OrbitRig,
+    /// Window pixels, 0RGB, row-major.
+    pub pixels: Vec<u32>,
+    /// Rendered width and height (smaller than the window for previews).
+    pub width: u32,
+    /// See `width`.
+    pub height: u32,
+    /// Samples per pixel in the image.
+    pub samples: u32,
+    /// A refinement of the still camera (false: a preview while moving).
+    pub refined: bool,
+    /// Seconds spent tracing this frame's pass.
+    pub render_s: f32,
+    /// Seconds spent converting the film to window pixels.
+    pub output_s: f32,
+}
+
+impl Frame {
+    /// Window pixels per rendered pixel along x.
+    pub fn scale(&self, window_width: u32) -> f32 {
+        window_width as f32 / self.width.max(1) as f32
+    }
+}
+
+/// Measured cost of tracing, and the preview shape it allows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CostModel {
+    /// Seconds per pixel-sample (smoothed).
+    pub s_per_sample: f32,
+    /// Seconds per window pixel to convert and upscale a frame (smoothed).
+    pub s_per_output_px: f32,
+}
+
+impl Default for CostModel {
+    /// Pessimistic until measured (1 us per sample), so the first preview
+    /// is coarse rather than slow.
+    fn default() -> Self {
+        Self {
+            s_per_sample: 1e-6,
+            s_per_output_px: 2e-8,
+        }
+    }
+}
+
+/// How much a new measurement moves the smoothed costs.
+const COST_ALPHA: f32 = 0.3;
+/// Most samples per pixel a moving frame takes even when the budget allows.
+const MAX_PREVIEW_SPP: u32 = 8;
+
+impl CostModel {
+    /// Folds in a pass of `n_samples` pixel-samples that took `seconds`.
+    pub fn observe_trace(&mut self, n_samples: u64, seconds: f32) {
+        if n_samples > 0 && seconds.is_finite() && seconds > 0.0 {
+            let s = seconds / n_samples as f32;
+            self.s_per_sample += COST_ALPHA * (s - self.s_per_sample);
+        }
+    }
+
+    /// Folds in converting `n_px` window pixels in `seconds`.
+    pub fn observe_output(&mut self, n_px: u64, seconds: f32) {
+        if n_px > 0 && seconds.is_finite() && seconds >= 0.0 {
+            let s = seconds / n_px as f32;
+            self.s_per_output_px += COST_ALPHA * (s - self.s_per_output_px);
+        }
+    }
+
+    /// Tracing time left in a frame of `budget_s` once the output of a
+    /// `window_px` window is paid for (at least a fifth of the budget).
+    fn trace_budget(&self, window_px: u64, budget_s: f32) -> f32 {
+        (budget_s - self.s_per_output_px * window_px as f32).max(0.2 * budget_s)
+    }
+
+    /// The preview for a `width` x `height` window within `budget_s`:
+    /// `(scale, spp)`. Below full resolution one sample; at full resolution
+    /// as many samples as fit (up to 8). The scale is rounded up to a
+    /// quarter so small cost changes do not change the size every frame.
+    pub fn preview_shape(&self, width: u32, height: u32, budget_s: f32, max_scale: f32) -> (f32, u32) {
+        let window_px = u64::from(width) * u64::from(height);
+        let affordable = self.trace_budget(window_px, budget_s) / self.s_per_sample.max(1e-12);
+        let scale = (window_px as f32 / affordable.max(1.0)).sqrt();
+        if scale <= 1.0 {
+            let spp = (affordable / window_px.max(1) as f32).floor() as u32;
+            return (1.0, spp.clamp(1, MAX_PREVIEW_SPP));
+        }
+        let scale = ((scale * 4.0).ceil() / 4.0).min(max_scale.max(1.0));
+        (scale, 1)
+    }
+
+    /// Samples per full-resolution refinement pass that fit `budget_s`
+    /// (at least one).
+    pub fn refine_samples(&self, width: u32, height: u32, budget_s: f32) -> u32 {
+        let window_px = u64::from(width) * u64::from(height);
+        let per_pass = self.s_per_sample.max(1e-12) * window_px as f32;
+        let n = self.trace_budget(window_px, budget_s) / per_pass;
+        if n.is_finite() {
+            (n.floor() as u32).clamp(1, 1024)
+        } else {
+            1
+        }
+    }
+}
+
+struct Shared {
+    state: Mutex<State>,
+    wake: Condvar,
+    /// Set when the generation changes; a refinement pass checks it.
+    cancel_refine: AtomicBool,
+    /// Set when the camera comes to rest; a preview checks it.
+    cancel_preview: AtomicBool,
+}
+
+struct State {
+    request: Request,
+    quit: bool,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, State> {
+        // A panic on the render thread must not take the window down with
+        // a second panic here; the state is plain data and stays usable.
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// The render thread and its mailboxes.
+pub struct Worker {
+    shared: Arc<Shared>,
+    frames: Receiver<Frame>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Worker {
+    /// Starts the render thread on `scene`, working on `first` at once.
+    pub fn spawn(scene: RenderScene, first: Request) -> std::io::Result<Self> {
+        let shared = Arc::new(Shared {
+            state: Mutex::new(State {
+                request: first,
+                quit: false,
+            }),
+            wake: Condvar::new(),
+            cancel_refine: AtomicBool::new(false),
+            cancel_preview: AtomicBool::new(false),
+        });
+        let (tx, frames) = channel();
+        let thread_shared = Arc::clone(&shared);
+        let thread = std::thread::Builder::new()
+            .name("lucent-render".to_owned())
+            .spawn(move || work(scene, &thread_shared, &tx))?;
+        Ok(Self {
+            shared,
+            frames,
+            thread: Some(thread),
+        })
+    }
+
+    /// Replaces the request; a new generation cancels a refinement pass in
+    /// flight, coming to rest cancels a preview. Never blocks on rendering
+    /// (the lock guards a few words).
+    pub fn submit(&self, request: Request) {
+        let mut state = self.shared.lock();
+        if state.request.generation != request.generation {
+            self.shared.cancel_refine.store(true, Ordering::Relaxed);
+        }
+        if state.request.moving && !request.moving {
+            self.shared.cancel_preview.store(true, Ordering::Relaxed);
+        }
+        state.request = request;
+        drop(state);
+        self.shared.wake.notify_one();
+    }
+
+    /// The newest finished frame, waiting at most `timeout` for one;
+    /// older frames waiting in the mailbox are dropped.
+    pub fn latest_frame(&self, timeout: Duration) -> Option<Frame> {
+        let mut frame = match self.frames.recv_timeout(timeout) {
+            Ok(f) => f,
+            Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => return None,
+        };
+        while let Ok(newer) = self.frames.try_recv() {
+            frame = newer;
+        }
+        Some(frame)
+    }
+
+    /// Whether the render thread has stopped (it only stops by panicking
+    /// before `Drop`).
+    pub fn is_dead(&self) -> bool {
+        self.thread.as_ref().is_none_or(JoinHandle::is_finished)
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.shared.lock().quit = true;
+        self.shared.cancel_refine.store(true, Ordering::Relaxed);
+        self.shared.cancel_preview.store(true, Ordering::Relaxed);
+        self.shared.wake.notify_one();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// What the render thread does next.
+enum Job {
+    Preview(Request),
+    Refine(Request),
+}
+
+/// The render thread's loop: wait for work, do it, send the frame.
+fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
+    let mut costs = CostModel::default();
+    let mut film: Option<(u64, Film)> = None;
+    let mut previewed: Option<u64> = None;
+    loop {
+        let job = {
+            let mut state = shared.lock();
+            loop {
+                if state.quit {
+                    return;
+                }
+                let r = state.request;
+                let refined = film
+                    .as_ref()
+                    .filter(|(g, _)| *g == r.generation)
+                    .map(|(_, f)| f.n_samples());
+                // Cleared under the lock, so a request that comes after the
+                // job is taken always cancels it.
+                shared.cancel_refine.store(false, Ordering::Relaxed);
+                shared.cancel_preview.store(false, Ordering::Relaxed);
+                if r.moving && previewed != Some(r.generation) {
+                    break Job::Preview(r);
+                }
+                if !r.moving && refined.is_none_or(|n| n < r.max_spp.max(1)) {
+                    break Job::Refine(r);
+                }
+                state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
+            }
+        };
+        let frame = match job {
+            Job::Preview(r) => {
+                previewed = Some(r.generation);
+                scene.rig = r.rig;
+                preview(&scene, &r, &mut costs, &shared.cancel_preview)
+            }
+            Job::Refine(r) => {
+                scene.rig = r.rig;
+                refine(&scene, &r, &mut costs, &mut film, &shared.cancel_refine)
+            }
+        };
+        if let Some(frame) = frame
+            && frames.send(frame).is_err()
+        {
+            return;
+        }
+    }
+}
+
+/// One moving frame at the resolution and samples the budget allows, or
+/// `None` when the camera came to rest meanwhile.
+fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &AtomicBool) -> Option<Frame> {
+    let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
+    let (scale, spp) = costs.preview_shape(w, h, r.frame_budget_s, r.max_scale);
+    let pw = ((w as f32 / scale).round() as u32).clamp(1, w);
+    let ph = ((h as f32 / scale).round() as u32).clamp(1, h);
+    let mut film = Film::new(pw, ph);
+    let start = Instant::now();
+    render_samples_cancellable(scene, &r.settings, &mut film, 0..spp, cancel)?;
+    let render_s = start.elapsed().as_secs_f32();
+    costs.observe_trace(u64::from(pw) * u64::from(ph) * u64::from(spp), render_s);
+    let (pixels, output_s) = output(&film, w, h, costs);
+    Some(Frame {
+        generation: r.generation,
+        rig: r.rig,
+        pixels,
+        width: pw,
+        height: ph,
+        samples: spp,
+        refined: false,
+        render_s,
+        output_s,
+    })
+}
+
+/// One more full-resolution pass of the still camera, or `None` when a new
+/// request cancelled it (the film is then dropped).
+fn refine(
+    scene: &RenderScene,
+    r: &Request,
+    costs: &mut CostModel,
+    film: &mut Option<(u64, Film)>,
+    cancel: &AtomicBool,
+) -> Option<Frame> {
+    let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
+    let (_, f) = match film.take() {
+        Some((g, f)) if g == r.generation && (f.width(), f.height()) == (w, h) => film.insert((g, f)),
+        _ => film.insert((r.generation, Film::new(w, h))),
+    };
+    let n = f.n_samples();
+    let k = costs
+        .refine_samples(w, h, r.frame_budget_s)
+        .min(r.max_spp.max(1).saturating_sub(n))
+        .max(1);
+    let start = Instant::now();
+    if render_samples_cancellable(scene, &r.settings, f, n..n + k, cancel).is_none() {
+        *film = None;
+        return None;
+    }
+    let render_s = start.elapsed().as_secs_f32();
+    costs.observe_trace(u64::from(w) * u64::from(h) * u64::from(k), render_s);
+    let (pixels, output_s) = output(f, w, h, costs);
+    Some(Frame {
+        generation: r.generation,
+        rig: r.rig,
+        pixels,
+        width: w,
+        height: h,
+        samples: f.n_samples(),
+        refined: true,
+        render_s,
+        output_s,
+    })
+}
+
+/// Converts a film to window pixels (nearest film pixel); returns them and
+/// the seconds it took.
+fn output(film: &Film, width: u32, height: u32, costs: &mut CostModel) -> (Vec<u32>, f32) {
+    let start = Instant::now();
+    let mut pixels = vec![0; width as usize * height as usize];
+    upscale(film, &mut pixels, width);
+    let output_s = start.elapsed().as_secs_f32();
+    costs.observe_output(pixels.len() as u64, output_s);
+    (pixels, output_s)
+}
+
+/// Fills `buffer` (0RGB, `buffer_width` wide) with `film`, each window
+/// pixel taking the film pixel it falls in.
+pub fn upscale(film: &Film, buffer: &mut [u32], buffer_width: u32) {
+    let srgb = film.to_srgb8();
+    let (fw, fh) = (film.width() as usize, film.height() as usize);
+    let bw = buffer_width.max(1) as usize;
+    let bh = buffer.len() / bw;
+    let cols: Vec<usize> = (0..bw).map(|x| (x * fw / bw).min(fw.saturating_sub(1))).collect();
+    for (y, row) in buffer.chunks_exact_mut(bw).enumerate() {
+        let fy = (y * fh / bh.max(1)).min(fh.saturating_sub(1));
+        for (out, &fx) in row.iter_mut().zip(&cols) {
+            let j = 3 * (fy * fw + fx);
+            if let Some(p) = srgb.get(j..j + 3) {
+                *out = (u32::from(p[0]) << 16) | (u32::from(p[1]) << 8) | u32::from(p[2]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

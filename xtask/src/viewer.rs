@@ -1,0 +1,419 @@
+//! Viewer tasks that drive the real window with xdotool under Xvfb and read
+//! the viewer's `--stats` lines:
+//!
+//! - `view-bench`: continuous rotation by dragging, then release, several
+//!   cycles; prints one JSON line with the displayed frame rate while
+//!   rotating, the resolution scale it settles at and the time from
+//!   releasing the mouse to the first full-resolution frame (medians);
+//! - `soak`: the viewer's own seeded random input (`--soak`) for a minute,
+//!   checking every displayed camera is finite, the exit is clean and the
+//!   resident memory stays flat (sampled from /proc twice a second).
+//!
+//! Both re-run themselves under `xvfb-run` when there is no display. They
+//! measure; they never run as part of `cargo test` (a short soak does, in
+//! `crates/lucent/tests/window.rs`).
+
+use crate::{cargo, has_program, root, run};
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::{Receiver, channel};
+use std::time::{Duration, Instant};
+
+/// Options shared by both tasks.
+struct Opts {
+    size: String,
+    build: bool,
+    cycles: u32,
+    rotate_s: f32,
+    seconds: f32,
+    seed: u64,
+}
+
+fn parse_opts(args: &[String]) -> Result<Opts, String> {
+    let mut o = Opts {
+        size: "640x360".to_owned(),
+        build: true,
+        cycles: 5,
+        rotate_s: 4.0,
+        seconds: 60.0,
+        seed: 1,
+    };
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| it.next().cloned().ok_or_else(|| format!("{name} needs a value"));
+        let num = |v: String, name: &str| v.parse::<f64>().map_err(|_| format!("{name}: '{v}' is not a number"));
+        match a.as_str() {
+            "--size" => o.size = value("--size")?,
+            "--no-build" => o.build = false,
+            "--cycles" => o.cycles = num(value("--cycles")?, "--cycles")?.max(1.0) as u32,
+            "--rotate-s" => o.rotate_s = num(value("--rotate-s")?, "--rotate-s")?.max(1.0) as f32,
+            "--seconds" => o.seconds = num(value("--seconds")?, "--seconds")?.max(1.0) as f32,
+            "--seed" => o.seed = num(value("--seed")?, "--seed")? as u64,
+            other => return Err(format!("unknown option '{other}'")),
+        }
+    }
+    Ok(o)
+}
+
+/// Re-runs this task under `xvfb-run` when there is no display; returns
+/// `Some(result)` if it did.
+fn under_xvfb(task: &str, args: &[String]) -> Option<Result<(), String>> {
+    if std::env::var_os("DISPLAY").is_some() {
+        return None;
+    }
+    if !has_program("xvfb-run") {
+        return Some(Err("no DISPLAY and no xvfb-run (apt-get install xvfb xauth)".to_owned()));
+    }
+    let me = std::env::current_exe().map_err(|e| e.to_string());
+    Some(me.and_then(|me| {
+        run(Command::new("xvfb-run")
+            .args(["-a", "-s", "-screen 0 1280x1024x24"])
+            .arg(me)
+            .arg(task)
+            .args(args))
+    }))
+}
+
+fn release_binary(build: bool) -> Result<PathBuf, String> {
+    if build {
+        run(cargo().args(["build", "--release", "--quiet", "-p", "lucent"]))?;
+    }
+    let bin = root().join("target/release/lucent");
+    if bin.exists() {
+        Ok(bin)
+    } else {
+        Err(format!("{} is missing: build it (drop --no-build)", bin.display()))
+    }
+}
+
+/// The viewer with its stdout lines arriving, each stamped when read.
+struct Viewer {
+    child: Child,
+    lines: Receiver<(Instant, String)>,
+}
+
+impl Viewer {
+    fn start(bin: &PathBuf, args: &[&str]) -> Result<Self, String> {
+        let mut child = Command::new(bin)
+            .arg("view")
+            .args(args)
+            .current_dir(std::env::temp_dir())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("cannot start {}: {e}", bin.display()))?;
+        let stdout = child.stdout.take().ok_or("no stdout")?;
+        let (tx, lines) = channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if tx.send((Instant::now(), line)).is_err() {
+                    break;
+                }
+            }
+        });
+        Ok(Self { child, lines })
+    }
+
+    /// Waits for the viewer to exit; returns success and its stderr.
+    fn finish(mut self) -> Result<(bool, String), String> {
+        let status = self.child.wait().map_err(|e| e.to_string())?;
+        let mut err = String::new();
+        if let Some(mut e) = self.child.stderr.take() {
+            let _ = std::io::Read::read_to_string(&mut e, &mut err);
+        }
+        Ok((status.success(), err))
+    }
+}
+
+/// The number after `"key":` in a JSON line.
+fn field(line: &str, key: &str) -> Option<f64> {
+    let pat = format!("\"{key}\":");
+    let rest = &line[line.find(&pat)? + pat.len()..];
+    let end = rest.find([',', '}', ']']).unwrap_or(rest.len());
+    rest[..end].trim().trim_start_matches('[').parse().ok()
+}
+
+fn xdotool(args: &[String]) -> Result<(), String> {
+    let out = Command::new("xdotool")
+        .args(args)
+        .output()
+        .map_err(|e| format!("cannot run xdotool ({e}); apt-get install xdotool"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!("xdotool {args:?}: {}", String::from_utf8_lossy(&out.stderr)))
+    }
+}
+
+fn strings(args: &[&str]) -> Vec<String> {
+    args.iter().map(|s| (*s).to_owned()).collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}
+
+fn json_list(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x:.2}")).collect();
+    format!("[{}]", items.join(","))
+}
+
+/// `cargo xtask view-bench [--size WxH] [--cycles N] [--rotate-s S] [--no-build]`
+pub fn bench(args: &[String]) -> Result<(), String> {
+    if let Some(res) = under_xvfb("view-bench", args) {
+        return res;
+    }
+    let o = parse_opts(args)?;
+    let bin = release_binary(o.build)?;
+    let (w, h) = o
+        .size
+        .split_once('x')
+        .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
+        .ok_or_else(|| format!("--size: '{}' is not WxH", o.size))?;
+    let viewer = Viewer::start(&bin, &["--size", &o.size, "--stats"])?;
+    let res = bench_cycles(&viewer, &o, w, h);
+    let _ = xdotool(&strings(&["key", "--delay", "100", "Escape"]));
+    let (ok, err) = viewer.finish()?;
+    let summary = res?;
+    if !ok {
+        return Err(format!("the viewer failed: {err}"));
+    }
+    println!("{summary}");
+    Ok(())
+}
+
+fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, String> {
+    let out = Command::new("timeout")
+        .args([
+            "60",
+            "xdotool",
+            "search",
+            "--sync",
+            "--onlyvisible",
+            "--name",
+            "^Lucent - ",
+        ])
+        .output()
+        .map_err(|e| e.to_string())?;
+    let win = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .trim()
+        .to_owned();
+    if win.is_empty() {
+        return Err("no viewer window appeared".to_owned());
+    }
+    xdotool(&strings(&["windowfocus", "--sync", &win]))?;
+    xdotool(&strings(&["mousemove", "--window", &win, "100", &(h / 2).to_string()]))?;
+    // Warm up: the first full-resolution frames.
+    std::thread::sleep(Duration::from_secs(3));
+    let (mut fps, mut frame_ms, mut scales, mut release_ms, mut release_internal_ms) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..o.cycles {
+        while viewer.lines.try_recv().is_ok() {}
+        let y = (h / 2).to_string();
+        xdotool(&strings(&["mousemove", "--window", &win, "100", &y]))?;
+        std::thread::sleep(Duration::from_millis(200));
+        xdotool(&strings(&["mousedown", "1"]))?;
+        std::thread::sleep(Duration::from_millis(100));
+        // One xdotool process moves the pointer every 10 ms, sweeping back
+        // and forth, and releases the button right after the last move.
+        let mut chain = Vec::new();
+        let steps = (o.rotate_s / 0.01) as u32;
+        let span = w.saturating_sub(200).max(8);
+        for i in 0..steps {
+            let phase = (i * 4) % (2 * span);
+            let x = 100 + if phase < span { phase } else { 2 * span - phase };
+            chain.extend(strings(&[
+                "mousemove",
+                "--window",
+                &win,
+                &x.to_string(),
+                &y,
+                "sleep",
+                "0.01",
+            ]));
+        }
+        chain.extend(strings(&["mouseup", "1"]));
+        xdotool(&chain)?;
+        let released = Instant::now();
+        std::thread::sleep(Duration::from_millis(1500));
+        let lines: Vec<(Instant, String)> = viewer.lines.try_iter().collect();
+        let moving: Vec<&String> = lines
+            .iter()
+            .filter(|(t, l)| *t < released && l.contains("\"refined\":false"))
+            .map(|(_, l)| l)
+            .collect();
+        // Rotation: previews shown while dragging, after the first second.
+        let t: Vec<f64> = moving.iter().filter_map(|l| field(l, "t_s")).collect();
+        let Some(&t0) = t.first() else {
+            return Err("no preview frames while rotating".to_owned());
+        };
+        let steady: Vec<&&String> = moving
+            .iter()
+            .zip(&t)
+            .filter(|&(_, &ti)| ti >= t0 + 1.0)
+            .map(|(l, _)| l)
+            .collect();
+        let ts: Vec<f64> = steady.iter().filter_map(|l| field(l, "t_s")).collect();
+        if ts.len() < 3 {
+            return Err(format!("too few frames while rotating: {}", ts.len()));
+        }
+        fps.push((ts.len() - 1) as f64 / (ts[ts.len() - 1] - ts[0]));
+        frame_ms.push(median(steady.iter().filter_map(|l| field(l, "frame_ms")).collect()));
+        scales.push(median(steady.iter().filter_map(|l| field(l, "scale")).collect()));
+        // Release: the first full-resolution frame read after the button
+        // went up (external), and its time since the last camera change as
+        // the viewer measured it (internal).
+        let first_full = lines.iter().find(|(t, l)| {
+            *t >= released && field(l, "width") == Some(f64::from(w)) && field(l, "height") == Some(f64::from(h))
+        });
+        let Some((t_full, line)) = first_full else {
+            return Err("no full-resolution frame within 1.5 s of the release".to_owned());
+        };
+        release_ms.push(t_full.duration_since(released).as_secs_f64() * 1e3);
+        release_internal_ms.push(field(line, "since_change_ms").unwrap_or(f64::NAN));
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    Ok(format!(
+        "{{\"scene\":\"built-in seed\",\"size\":\"{}\",\"cycles\":{},\"rotate_s\":{},\
+\"rotation_fps_median\":{:.1},\"rotation_frame_ms_median\":{:.1},\"settled_scale_median\":{:.2},\
+\"release_to_full_res_ms_median\":{:.0},\"last_change_to_full_res_ms_median\":{:.0},\
+\"rotation_fps\":{},\"settled_scale\":{},\"release_to_full_res_ms\":{}}}",
+        o.size,
+        o.cycles,
+        o.rotate_s,
+        median(fps.clone()),
+        median(frame_ms),
+        median(scales.clone()),
+        median(release_ms.clone()),
+        median(release_internal_ms),
+        json_list(&fps),
+        json_list(&scales),
+        json_list(&release_ms),
+    ))
+}
+
+/// `cargo xtask soak [--seconds S] [--seed N] [--size WxH] [--no-build]`
+pub fn soak(args: &[String]) -> Result<(), String> {
+    if let Some(res) = under_xvfb("soak", args) {
+        return res;
+    }
+    let o = parse_opts(args)?;
+    let bin = release_binary(o.build)?;
+    let seconds = o.seconds.to_string();
+    let seed = o.seed.to_string();
+    let viewer = Viewer::start(
+        &bin,
+        &["--size", &o.size, "--stats", "--soak", &seconds, "--soak-seed", &seed],
+    )?;
+    let status_path = format!("/proc/{}/status", viewer.child.id());
+    let mut rss_kb: Vec<(f64, f64)> = Vec::new();
+    let (mut frames, mut bad) = (0u64, Vec::new());
+    let start = Instant::now();
+    let limit = Duration::from_secs_f32(o.seconds + 120.0);
+    loop {
+        match viewer.lines.recv_timeout(Duration::from_millis(500)) {
+            Ok((_, line)) => {
+                frames += 1;
+                let finite = ["R", "theta", "phi"]
+                    .iter()
+                    .all(|k| field(&line, k).is_some_and(f64::is_finite));
+                if line.contains("null") || !finite {
+                    bad.push(line);
+                }
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+        let t = start.elapsed().as_secs_f64();
+        if rss_kb.last().is_none_or(|&(last, _)| t - last >= 0.5)
+            && let Some(kb) = std::fs::read_to_string(&status_path).ok().and_then(|s| {
+                s.lines()
+                    .find(|l| l.starts_with("VmRSS:"))
+                    .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+            })
+        {
+            rss_kb.push((t, kb));
+        }
+        if start.elapsed() > limit {
+            return Err("the soak did not end in time".to_owned());
+        }
+    }
+    let (ok, err) = viewer.finish()?;
+    let inputs = err
+        .lines()
+        .find_map(|l| l.strip_prefix("soak: ")?.split_whitespace().next()?.parse::<u64>().ok())
+        .unwrap_or(0);
+    // Memory: after a warm-up of a tenth of the run, the median of the last
+    // third against the median of the first third.
+    let warm = o.seconds as f64 / 10.0;
+    let steady: Vec<f64> = rss_kb.iter().filter(|(t, _)| *t >= warm).map(|(_, kb)| *kb).collect();
+    let third = steady.len() / 3;
+    let early = median(steady[..third].to_vec());
+    let late = median(steady[steady.len() - third..].to_vec());
+    let max = steady.iter().copied().fold(0.0, f64::max);
+    let growth = late - early;
+    let flat = third > 0 && growth < (4096.0f64).max(0.05 * early);
+    println!(
+        "{{\"seconds\":{},\"seed\":{},\"size\":\"{}\",\"inputs\":{inputs},\"frames\":{frames},\"non_finite_frames\":{},\
+\"rss_samples\":{},\"rss_early_median_kb\":{early:.0},\"rss_late_median_kb\":{late:.0},\"rss_max_kb\":{max:.0},\
+\"rss_growth_kb\":{growth:.0},\"flat\":{flat},\"clean_exit\":{}}}",
+        o.seconds,
+        o.seed,
+        o.size,
+        bad.len(),
+        steady.len(),
+        ok && !err.contains("panicked"),
+    );
+    if !ok || err.contains("panicked") {
+        return Err(format!("the viewer failed: {err}"));
+    }
+    if let Some(line) = bad.first() {
+        return Err(format!("{} frames had a non-finite camera, e.g. {line}", bad.len()));
+    }
+    if inputs < 1000 {
+        return Err(format!(
+            "only {inputs} random inputs; a soak needs thousands (run longer)"
+        ));
+    }
+    if !flat {
+        return Err(format!("resident memory grew by {growth:.0} kB"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_numbers_from_stats_lines() {
+        let line = "{\"frame\":3,\"scale\":2.500000,\"camera\":{\"R\":3.0,\"O\":[1.5,-2.0,0.0]}}";
+        assert_eq!(field(line, "frame"), Some(3.0));
+        assert_eq!(field(line, "scale"), Some(2.5));
+        assert_eq!(field(line, "R"), Some(3.0));
+        assert_eq!(field(line, "O"), Some(1.5));
+        assert_eq!(field(line, "missing"), None);
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert!(median(Vec::new()).is_nan());
+    }
+
+    #[test]
+    fn options_parse_and_reject_unknown_ones() {
+        let o = parse_opts(&strings(&["--cycles", "3", "--seconds", "90", "--no-build"])).unwrap();
+        assert_eq!(
+            (o.cycles, o.seconds, o.build, o.size.as_str()),
+            (3, 90.0, false, "640x360")
+        );
+        assert!(parse_opts(&strings(&["--bogus"])).is_err());
+        assert!(parse_opts(&strings(&["--cycles"])).is_err());
+    }
+}
