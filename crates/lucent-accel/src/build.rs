@@ -1,34 +1,109 @@
-//! Binned surface-area-heuristic BVH construction.
+//! Surface-area-heuristic BVH construction.
 //!
 //! Top-down: each node bins its primitives' centroids along every axis, sweeps
 //! the bins to price every split by the SAH, and splits where it is cheapest,
-//! or makes a leaf when that is cheaper. Two fallbacks keep the tree sound on
-//! hostile input: primitives whose centroids coincide are split by index, and
-//! a node that would grow the tree deeper than traversal stacks allow is split
-//! at the median, which halves it, so the depth stays below [`MAX_DEPTH`].
+//! or makes a leaf when that is cheaper. At [`BuildQuality::High`] small nodes
+//! are priced exactly instead (a sorted sweep over every primitive boundary).
+//! Subtrees of large nodes are built in parallel with rayon (feature
+//! `parallel`, on by default); the tree does not depend on the number of
+//! threads. Two fallbacks keep the tree sound on hostile input: primitives
+//! whose centroids coincide are split by index, and a node that would grow
+//! the tree deeper than traversal stacks allow is split at the median, which
+//! halves it, so the depth stays below [`MAX_DEPTH`].
 
 use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH};
 use lucent_geom::Vec3;
 
+/// The speed-for-quality trade of a build.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BuildQuality {
+    /// 8 SAH bins per axis: the quickest build, a slightly worse tree.
+    Fast,
+    /// 16 SAH bins per axis.
+    #[default]
+    Default,
+    /// 32 bins for large nodes and an exact SAH sweep over every primitive
+    /// for nodes of up to 4096 primitives: the slowest build, the best tree.
+    High,
+}
+
+impl BuildQuality {
+    /// Lowercase name (`fast`, `default`, `high`).
+    pub fn name(self) -> &'static str {
+        match self {
+            BuildQuality::Fast => "fast",
+            BuildQuality::Default => "default",
+            BuildQuality::High => "high",
+        }
+    }
+}
+
 /// Build settings. The defaults suit triangle meshes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildParams {
-    /// Leaves never hold more primitives than this (at least 1).
+    /// Leaves never hold more primitives than this (1 to 16).
     pub max_leaf_size: u32,
     /// Centroid bins per axis for the SAH sweep (2 to 64).
     pub n_bins: usize,
     /// Cost of visiting a node, relative to one primitive test.
     pub traversal_cost: f32,
+    /// Nodes with at most this many primitives are split by an exact SAH
+    /// sweep (sorting centroids) instead of binning; 0 never.
+    pub exact_below: u32,
 }
 
 impl Default for BuildParams {
     fn default() -> Self {
+        Self::for_quality(BuildQuality::Default)
+    }
+}
+
+impl BuildParams {
+    /// The settings of a quality level.
+    ///
+    /// ```
+    /// use lucent_accel::{BuildParams, BuildQuality};
+    /// assert_eq!(BuildParams::for_quality(BuildQuality::Default), BuildParams::default());
+    /// assert!(BuildParams::for_quality(BuildQuality::High).exact_below > 0);
+    /// ```
+    pub fn for_quality(quality: BuildQuality) -> Self {
+        let (n_bins, exact_below) = match quality {
+            BuildQuality::Fast => (8, 0),
+            BuildQuality::Default => (16, 0),
+            BuildQuality::High => (32, 4096),
+        };
         Self {
             max_leaf_size: 8,
-            n_bins: 16,
+            n_bins,
             traversal_cost: 1.0,
+            exact_below,
         }
     }
+}
+
+/// Nodes with at least this many primitives build their two subtrees in
+/// parallel (below it the task overhead outweighs the work).
+#[cfg(feature = "parallel")]
+const PARALLEL_MIN: usize = 4096;
+
+#[cfg(feature = "parallel")]
+fn join<A, B, RA, RB>(parallel: bool, a: A, b: B) -> (RA, RB)
+where
+    A: FnOnce() -> RA + Send,
+    B: FnOnce() -> RB + Send,
+    RA: Send,
+    RB: Send,
+{
+    if parallel { rayon::join(a, b) } else { (a(), b()) }
+}
+
+#[cfg(not(feature = "parallel"))]
+fn join<A, B, RA, RB>(_parallel: bool, a: A, b: B) -> (RA, RB)
+where
+    A: FnOnce() -> RA,
+    B: FnOnce() -> RB,
+{
+    (a(), b())
 }
 
 #[derive(Clone, Copy)]
@@ -42,11 +117,15 @@ const EMPTY_BIN: Bin = Bin {
     count: 0,
 };
 
+/// The tree as the recursive build produces it, flattened afterwards.
+enum TmpNode {
+    Leaf { bounds: Aabb, first: usize, count: usize },
+    Inner { bounds: Aabb, kids: Box<[TmpNode; 2]> },
+}
+
 struct Builder<'a> {
     boxes: &'a [Aabb],
     centroids: Vec<Vec3>,
-    prims: Vec<u32>,
-    nodes: Vec<BvhNode>,
     params: BuildParams,
 }
 
@@ -55,11 +134,12 @@ impl Bvh {
     /// Boxes that are empty or not finite are left out.
     pub fn build(boxes: &[Aabb], params: &BuildParams) -> Bvh {
         let params = BuildParams {
-            max_leaf_size: params.max_leaf_size.max(1),
+            max_leaf_size: params.max_leaf_size.clamp(1, 16),
             n_bins: params.n_bins.clamp(2, 64),
             traversal_cost: params.traversal_cost.max(0.0),
+            exact_below: params.exact_below,
         };
-        let prims: Vec<u32> = (0..boxes.len() as u32)
+        let mut prims: Vec<u32> = (0..boxes.len() as u32)
             .filter(|&i| {
                 let b = boxes[i as usize];
                 !b.is_empty() && b.min.is_finite() && b.max.is_finite()
@@ -68,20 +148,18 @@ impl Bvh {
         if prims.is_empty() {
             return Bvh::default();
         }
-        let centroids = boxes.iter().map(Aabb::center).collect();
-        let mut builder = Builder {
+        let builder = Builder {
             boxes,
-            centroids,
-            nodes: Vec::with_capacity(2 * prims.len() / params.max_leaf_size as usize + 1),
-            prims,
+            centroids: boxes.iter().map(Aabb::center).collect(),
             params,
         };
-        builder.nodes.push(leaf(Aabb::EMPTY, 0, 0));
-        let n = builder.prims.len();
-        builder.build_node(0, 0, n, 0);
+        let root = builder.build_node(&mut prims, 0, 0);
+        let mut nodes = Vec::with_capacity(2 * prims.len() / params.max_leaf_size as usize + 1);
+        nodes.push(leaf(Aabb::EMPTY, 0, 0));
+        flatten(&root, &mut nodes, 0);
         Bvh {
-            nodes: builder.nodes,
-            prim_indices: builder.prims,
+            nodes,
+            prim_indices: prims,
         }
     }
 }
@@ -95,53 +173,82 @@ fn leaf(bounds: Aabb, first: usize, count: usize) -> BvhNode {
     }
 }
 
+/// Writes `node` at `idx` and its subtree after it, children side by side.
+fn flatten(node: &TmpNode, nodes: &mut Vec<BvhNode>, idx: usize) {
+    match node {
+        TmpNode::Leaf { bounds, first, count } => nodes[idx] = leaf(*bounds, *first, *count),
+        TmpNode::Inner { bounds, kids } => {
+            let first = nodes.len();
+            nodes.push(leaf(Aabb::EMPTY, 0, 0));
+            nodes.push(leaf(Aabb::EMPTY, 0, 0));
+            nodes[idx] = BvhNode {
+                min: bounds.min,
+                first: first as u32,
+                max: bounds.max,
+                count: 0,
+            };
+            flatten(&kids[0], nodes, first);
+            flatten(&kids[1], nodes, first + 1);
+        }
+    }
+}
+
 impl Builder<'_> {
-    fn build_node(&mut self, node_idx: usize, start: usize, end: usize, depth: usize) {
-        let (bounds, centroid_bounds) = self.prims[start..end]
-            .iter()
-            .fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &p| {
-                (b.union(self.boxes[p as usize]), c.grown(self.centroids[p as usize]))
-            });
-        let count = end - start;
-        self.nodes[node_idx] = leaf(bounds, start, count);
+    /// Builds the subtree over `prims`, which start at `offset` in the final
+    /// primitive order; reorders `prims` into leaf order.
+    fn build_node(&self, prims: &mut [u32], offset: usize, depth: usize) -> TmpNode {
+        let (bounds, centroid_bounds) = prims.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &p| {
+            (b.union(self.boxes[p as usize]), c.grown(self.centroids[p as usize]))
+        });
+        let count = prims.len();
+        let as_leaf = TmpNode::Leaf {
+            bounds,
+            first: offset,
+            count,
+        };
         if count <= 1 {
-            return;
+            return as_leaf;
         }
         let must_split = count > self.params.max_leaf_size as usize;
         // Levels a median-split subtree of `count` primitives needs.
         let levels_needed = usize::BITS as usize - (count - 1).leading_zeros() as usize;
         let depth_budget = MAX_DEPTH.saturating_sub(2 + depth);
+        let leaf_cost = count as f32;
         let mid = if levels_needed + 1 >= depth_budget {
-            Some(self.split_median(start, end, &centroid_bounds))
+            Some(self.split_median(prims, &centroid_bounds))
+        } else if count <= self.params.exact_below as usize {
+            match self.exact_split(prims, &bounds) {
+                Some((_, cost)) if cost >= leaf_cost && !must_split => None,
+                Some((mid, _)) => Some(mid),
+                None if must_split => Some(self.split_median(prims, &centroid_bounds)),
+                None => None,
+            }
         } else {
-            match self.find_sah_split(start, end, &bounds, &centroid_bounds) {
-                Some((axis, bin, cost)) => {
-                    let leaf_cost = count as f32;
-                    if cost >= leaf_cost && !must_split {
-                        None
-                    } else {
-                        Some(self.partition(start, end, axis, bin, &centroid_bounds))
-                    }
-                }
+            match self.find_sah_split(prims, &bounds, &centroid_bounds) {
+                Some((_, _, cost)) if cost >= leaf_cost && !must_split => None,
+                Some((axis, bin, _)) => Some(self.partition(prims, axis, bin, &centroid_bounds)),
                 // All centroids coincide: SAH cannot separate them.
-                None if must_split => Some(self.split_median(start, end, &centroid_bounds)),
+                None if must_split => Some(self.split_median(prims, &centroid_bounds)),
                 None => None,
             }
         };
         let Some(mid) = mid else {
-            return;
+            return as_leaf;
         };
-        let first_child = self.nodes.len();
-        self.nodes.push(leaf(Aabb::EMPTY, 0, 0));
-        self.nodes.push(leaf(Aabb::EMPTY, 0, 0));
-        self.nodes[node_idx] = BvhNode {
-            min: bounds.min,
-            first: first_child as u32,
-            max: bounds.max,
-            count: 0,
-        };
-        self.build_node(first_child, start, mid, depth + 1);
-        self.build_node(first_child + 1, mid, end, depth + 1);
+        let (left, right) = prims.split_at_mut(mid);
+        #[cfg(feature = "parallel")]
+        let parallel = count >= PARALLEL_MIN;
+        #[cfg(not(feature = "parallel"))]
+        let parallel = false;
+        let (a, b) = join(
+            parallel,
+            || self.build_node(left, offset, depth + 1),
+            || self.build_node(right, offset + mid, depth + 1),
+        );
+        TmpNode::Inner {
+            bounds,
+            kids: Box::new([a, b]),
+        }
     }
 
     fn bin_of(&self, prim: u32, axis: usize, cb: &Aabb) -> usize {
@@ -154,7 +261,7 @@ impl Builder<'_> {
 
     /// Cheapest SAH split: (axis, first bin of the right side, cost relative
     /// to one primitive test), or `None` when the centroids do not spread.
-    fn find_sah_split(&self, start: usize, end: usize, bounds: &Aabb, cb: &Aabb) -> Option<(usize, usize, f32)> {
+    fn find_sah_split(&self, prims: &[u32], bounds: &Aabb, cb: &Aabb) -> Option<(usize, usize, f32)> {
         let n_bins = self.params.n_bins;
         let inv_area = 1.0 / bounds.half_area().max(f32::MIN_POSITIVE);
         let mut best: Option<(usize, usize, f32)> = None;
@@ -164,7 +271,7 @@ impl Builder<'_> {
                 continue;
             }
             let mut bins = [EMPTY_BIN; 64];
-            for &p in &self.prims[start..end] {
+            for &p in prims {
                 let b = &mut bins[self.bin_of(p, axis, cb)];
                 b.bounds = b.bounds.union(self.boxes[p as usize]);
                 b.count += 1;
@@ -191,32 +298,70 @@ impl Builder<'_> {
         best
     }
 
-    fn partition(&mut self, start: usize, end: usize, axis: usize, bin: usize, cb: &Aabb) -> usize {
-        let mut i = start;
+    /// Exact SAH split: sorts the centroids along each axis and prices a cut
+    /// between every pair of neighbours. Leaves `prims` ordered along the
+    /// best axis and returns (first index of the right side, cost), or
+    /// `None` when no cut separates distinct centroids.
+    fn exact_split(&self, prims: &mut [u32], bounds: &Aabb) -> Option<(usize, f32)> {
+        let n = prims.len();
+        let inv_area = 1.0 / bounds.half_area().max(f32::MIN_POSITIVE);
+        let mut best: Option<(usize, usize, f32)> = None;
+        let mut order = prims.to_vec();
+        let mut right_cost = vec![0.0f32; n];
+        for axis in 0..3 {
+            let key = |p: &u32| self.centroids[*p as usize][axis];
+            order.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+            let mut acc = Aabb::EMPTY;
+            for i in (1..n).rev() {
+                acc = acc.union(self.boxes[order[i] as usize]);
+                right_cost[i] = acc.half_area() * (n - i) as f32;
+            }
+            let mut acc = Aabb::EMPTY;
+            for i in 1..n {
+                acc = acc.union(self.boxes[order[i - 1] as usize]);
+                // Only cut between distinct centroids, so both sides differ.
+                if key(&order[i - 1]) == key(&order[i]) {
+                    continue;
+                }
+                let cost = self.params.traversal_cost + (acc.half_area() * i as f32 + right_cost[i]) * inv_area;
+                if best.is_none_or(|(_, _, c)| cost < c) {
+                    best = Some((axis, i, cost));
+                }
+            }
+        }
+        let (axis, mid, cost) = best?;
+        let key = |p: &u32| self.centroids[*p as usize][axis];
+        prims.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+        Some((mid, cost))
+    }
+
+    fn partition(&self, prims: &mut [u32], axis: usize, bin: usize, cb: &Aabb) -> usize {
+        let end = prims.len();
+        let mut i = 0;
         let mut j = end;
         while i < j {
-            if self.bin_of(self.prims[i], axis, cb) < bin {
+            if self.bin_of(prims[i], axis, cb) < bin {
                 i += 1;
             } else {
                 j -= 1;
-                self.prims.swap(i, j);
+                prims.swap(i, j);
             }
         }
-        if i == start || i == end {
+        if i == 0 || i == end {
             // Every centroid fell into one side (only possible with extreme
             // values): fall back to halving.
-            return self.split_median(start, end, cb);
+            return self.split_median(prims, cb);
         }
         i
     }
 
     /// Splits at the middle index after ordering by centroid along the
     /// longest axis; always yields two non-empty halves.
-    fn split_median(&mut self, start: usize, end: usize, cb: &Aabb) -> usize {
+    fn split_median(&self, prims: &mut [u32], cb: &Aabb) -> usize {
         let axis = cb.largest_axis();
-        let mid = start + (end - start) / 2;
+        let mid = prims.len() / 2;
         let centroids = &self.centroids;
-        self.prims[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
+        prims.select_nth_unstable_by(mid, |&a, &b| {
             centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
         });
         mid

@@ -27,8 +27,9 @@ mod build;
 mod bvh;
 mod mesh_bvh;
 mod scene_bvh;
+mod wide;
 
-pub use build::BuildParams;
+pub use build::{BuildParams, BuildQuality};
 pub use bvh::{Bvh, BvhNode, BvhStats, MAX_DEPTH};
 pub use mesh_bvh::{MeshBvh, MeshHit};
 pub use scene_bvh::{Instance, SceneBvh, SceneHit};

@@ -23,6 +23,8 @@ pub struct BenchArgs {
 enum BenchCommand {
     /// Time whole renders of a scene (default: the built-in seed scene).
     Render(RenderBenchArgs),
+    /// Time the traversal core alone on a ray file (the Embree peer's formats).
+    Rays(crate::bench_rays::RaysBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -45,6 +47,7 @@ struct RenderBenchArgs {
 pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
         BenchCommand::Render(a) => bench_render(a),
+        BenchCommand::Rays(a) => crate::bench_rays::run(a),
     }
 }
 

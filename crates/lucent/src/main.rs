@@ -5,6 +5,7 @@
 #![allow(clippy::print_stdout, reason = "a command-line program reports on stdout")]
 
 mod bench_cmd;
+mod bench_rays;
 mod builtin;
 mod render_cmd;
 mod viewer;
