@@ -50,6 +50,12 @@ pub struct BuildParams {
     /// Nodes with at most this many primitives are split by an exact SAH
     /// sweep (sorting centroids) instead of binning; 0 never.
     pub exact_below: u32,
+    /// Primitives are tested this many at a time (4 for [`MeshBvh`]'s
+    /// four-lane triangle test), so the SAH prices a leaf of `n` as
+    /// `ceil(n / prim_block)` tests; 1 prices each primitive.
+    ///
+    /// [`MeshBvh`]: crate::MeshBvh
+    pub prim_block: u32,
 }
 
 impl Default for BuildParams {
@@ -77,6 +83,7 @@ impl BuildParams {
             n_bins,
             traversal_cost: 1.0,
             exact_below,
+            prim_block: 4,
         }
     }
 }
@@ -117,16 +124,62 @@ const EMPTY_BIN: Bin = Bin {
     count: 0,
 };
 
+/// A primitive as the builder moves it around: its box and its index, kept
+/// together so that partitioning streams through memory.
+#[derive(Clone, Copy, Debug)]
+struct PrimRef {
+    bounds: Aabb,
+    id: u32,
+}
+
+impl PrimRef {
+    #[inline]
+    fn centroid(&self) -> Vec3 {
+        self.bounds.center()
+    }
+}
+
 /// The tree as the recursive build produces it, flattened afterwards.
 enum TmpNode {
     Leaf { bounds: Aabb, first: usize, count: usize },
     Inner { bounds: Aabb, kids: Box<[TmpNode; 2]> },
 }
 
-struct Builder<'a> {
-    boxes: &'a [Aabb],
-    centroids: Vec<Vec3>,
+struct Builder {
     params: BuildParams,
+}
+
+/// Maps centroids to bins along each axis of a node's centroid box.
+struct Binner {
+    min: Vec3,
+    /// Bins per unit length, per axis; 0 where the centroids do not spread.
+    scale: [f32; 3],
+    n_bins: usize,
+}
+
+impl Binner {
+    fn new(cb: &Aabb, n_bins: usize) -> Self {
+        let scale = [0, 1, 2].map(|axis| {
+            let extent = cb.max[axis] - cb.min[axis];
+            if extent > 0.0 && extent.is_finite() {
+                n_bins as f32 / extent
+            } else {
+                0.0
+            }
+        });
+        Self {
+            min: cb.min,
+            scale,
+            n_bins,
+        }
+    }
+
+    /// The bin of centroid `c` along `axis`; always in range (`as usize`
+    /// saturates and maps NaN to 0).
+    #[inline]
+    fn bin(&self, c: Vec3, axis: usize) -> usize {
+        (((c[axis] - self.min[axis]) * self.scale[axis]) as usize).min(self.n_bins - 1)
+    }
 }
 
 impl Bvh {
@@ -138,28 +191,28 @@ impl Bvh {
             n_bins: params.n_bins.clamp(2, 64),
             traversal_cost: params.traversal_cost.max(0.0),
             exact_below: params.exact_below,
+            prim_block: params.prim_block.clamp(1, 16),
         };
-        let mut prims: Vec<u32> = (0..boxes.len() as u32)
-            .filter(|&i| {
-                let b = boxes[i as usize];
-                !b.is_empty() && b.min.is_finite() && b.max.is_finite()
+        let mut prims: Vec<PrimRef> = boxes
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| !b.is_empty() && b.min.is_finite() && b.max.is_finite())
+            .map(|(i, b)| PrimRef {
+                bounds: *b,
+                id: i as u32,
             })
             .collect();
         if prims.is_empty() {
             return Bvh::default();
         }
-        let builder = Builder {
-            boxes,
-            centroids: boxes.iter().map(Aabb::center).collect(),
-            params,
-        };
+        let builder = Builder { params };
         let root = builder.build_node(&mut prims, 0, 0);
         let mut nodes = Vec::with_capacity(2 * prims.len() / params.max_leaf_size as usize + 1);
         nodes.push(leaf(Aabb::EMPTY, 0, 0));
         flatten(&root, &mut nodes, 0);
         Bvh {
             nodes,
-            prim_indices: prims,
+            prim_indices: prims.iter().map(|p| p.id).collect(),
         }
     }
 }
@@ -193,12 +246,12 @@ fn flatten(node: &TmpNode, nodes: &mut Vec<BvhNode>, idx: usize) {
     }
 }
 
-impl Builder<'_> {
+impl Builder {
     /// Builds the subtree over `prims`, which start at `offset` in the final
     /// primitive order; reorders `prims` into leaf order.
-    fn build_node(&self, prims: &mut [u32], offset: usize, depth: usize) -> TmpNode {
-        let (bounds, centroid_bounds) = prims.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &p| {
-            (b.union(self.boxes[p as usize]), c.grown(self.centroids[p as usize]))
+    fn build_node(&self, prims: &mut [PrimRef], offset: usize, depth: usize) -> TmpNode {
+        let (bounds, centroid_bounds) = prims.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), p| {
+            (b.union(p.bounds), c.grown(p.centroid()))
         });
         let count = prims.len();
         let as_leaf = TmpNode::Leaf {
@@ -213,22 +266,23 @@ impl Builder<'_> {
         // Levels a median-split subtree of `count` primitives needs.
         let levels_needed = usize::BITS as usize - (count - 1).leading_zeros() as usize;
         let depth_budget = MAX_DEPTH.saturating_sub(2 + depth);
-        let leaf_cost = count as f32;
+        let leaf_cost = self.blocks(count);
         let mid = if levels_needed + 1 >= depth_budget {
-            Some(self.split_median(prims, &centroid_bounds))
+            Some(split_median(prims, &centroid_bounds))
         } else if count <= self.params.exact_below as usize {
             match self.exact_split(prims, &bounds) {
                 Some((_, cost)) if cost >= leaf_cost && !must_split => None,
                 Some((mid, _)) => Some(mid),
-                None if must_split => Some(self.split_median(prims, &centroid_bounds)),
+                None if must_split => Some(split_median(prims, &centroid_bounds)),
                 None => None,
             }
         } else {
-            match self.find_sah_split(prims, &bounds, &centroid_bounds) {
+            let binner = Binner::new(&centroid_bounds, self.params.n_bins);
+            match self.find_sah_split(prims, &bounds, &binner) {
                 Some((_, _, cost)) if cost >= leaf_cost && !must_split => None,
-                Some((axis, bin, _)) => Some(self.partition(prims, axis, bin, &centroid_bounds)),
+                Some((axis, bin, _)) => Some(partition(prims, axis, bin, &binner, &centroid_bounds)),
                 // All centroids coincide: SAH cannot separate them.
-                None if must_split => Some(self.split_median(prims, &centroid_bounds)),
+                None if must_split => Some(split_median(prims, &centroid_bounds)),
                 None => None,
             }
         };
@@ -251,44 +305,47 @@ impl Builder<'_> {
         }
     }
 
-    fn bin_of(&self, prim: u32, axis: usize, cb: &Aabb) -> usize {
-        let n_bins = self.params.n_bins;
-        let extent = cb.max[axis] - cb.min[axis];
-        let rel = (self.centroids[prim as usize][axis] - cb.min[axis]) / extent;
-        // `as usize` saturates (NaN -> 0), so the index is always in range.
-        ((rel * n_bins as f32) as usize).min(n_bins - 1)
+    /// SAH weight of `n` primitives: the number of block tests.
+    #[inline]
+    fn blocks(&self, n: usize) -> f32 {
+        n.div_ceil(self.params.prim_block as usize) as f32
     }
 
     /// Cheapest SAH split: (axis, first bin of the right side, cost relative
-    /// to one primitive test), or `None` when the centroids do not spread.
-    fn find_sah_split(&self, prims: &[u32], bounds: &Aabb, cb: &Aabb) -> Option<(usize, usize, f32)> {
+    /// to one block test), or `None` when the centroids do not spread. Bins
+    /// all three axes in one pass over the primitives.
+    fn find_sah_split(&self, prims: &[PrimRef], bounds: &Aabb, binner: &Binner) -> Option<(usize, usize, f32)> {
         let n_bins = self.params.n_bins;
         let inv_area = 1.0 / bounds.half_area().max(f32::MIN_POSITIVE);
-        let mut best: Option<(usize, usize, f32)> = None;
-        for axis in 0..3 {
-            let extent = cb.max[axis] - cb.min[axis];
-            if extent.is_nan() || extent <= 0.0 {
-                continue;
-            }
-            let mut bins = [EMPTY_BIN; 64];
-            for &p in prims {
-                let b = &mut bins[self.bin_of(p, axis, cb)];
-                b.bounds = b.bounds.union(self.boxes[p as usize]);
+        let spread = binner.scale.map(|k| k > 0.0);
+        if spread == [false; 3] {
+            return None;
+        }
+        let mut bins = [[EMPTY_BIN; 64]; 3];
+        for p in prims {
+            let c = p.centroid();
+            for axis in (0..3).filter(|&a| spread[a]) {
+                let b = &mut bins[axis][binner.bin(c, axis)];
+                b.bounds = b.bounds.union(p.bounds);
                 b.count += 1;
             }
-            // Right-to-left sweep: area x count of the right side per split.
+        }
+        let mut best: Option<(usize, usize, f32)> = None;
+        for axis in (0..3).filter(|&a| spread[a]) {
+            let bins = &bins[axis];
+            // Right-to-left sweep: area x blocks of the right side per split.
             let mut right_cost = [0.0f32; 64];
             let mut acc = EMPTY_BIN;
             for i in (1..n_bins).rev() {
                 acc.bounds = acc.bounds.union(bins[i].bounds);
                 acc.count += bins[i].count;
-                right_cost[i] = acc.bounds.half_area() * acc.count as f32;
+                right_cost[i] = acc.bounds.half_area() * self.blocks(acc.count as usize);
             }
             let mut acc = EMPTY_BIN;
             for i in 1..n_bins {
                 acc.bounds = acc.bounds.union(bins[i - 1].bounds);
                 acc.count += bins[i - 1].count;
-                let left_cost = acc.bounds.half_area() * acc.count as f32;
+                let left_cost = acc.bounds.half_area() * self.blocks(acc.count as usize);
                 let cost = self.params.traversal_cost + (left_cost + right_cost[i]) * inv_area;
                 if best.is_none_or(|(_, _, c)| cost < c) {
                     best = Some((axis, i, cost));
@@ -302,70 +359,69 @@ impl Builder<'_> {
     /// between every pair of neighbours. Leaves `prims` ordered along the
     /// best axis and returns (first index of the right side, cost), or
     /// `None` when no cut separates distinct centroids.
-    fn exact_split(&self, prims: &mut [u32], bounds: &Aabb) -> Option<(usize, f32)> {
+    fn exact_split(&self, prims: &mut [PrimRef], bounds: &Aabb) -> Option<(usize, f32)> {
         let n = prims.len();
         let inv_area = 1.0 / bounds.half_area().max(f32::MIN_POSITIVE);
         let mut best: Option<(usize, usize, f32)> = None;
-        let mut order = prims.to_vec();
         let mut right_cost = vec![0.0f32; n];
+        let order = |prims: &mut [PrimRef], axis: usize| {
+            prims.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]).then(a.id.cmp(&b.id)));
+        };
         for axis in 0..3 {
-            let key = |p: &u32| self.centroids[*p as usize][axis];
-            order.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+            order(prims, axis);
             let mut acc = Aabb::EMPTY;
             for i in (1..n).rev() {
-                acc = acc.union(self.boxes[order[i] as usize]);
-                right_cost[i] = acc.half_area() * (n - i) as f32;
+                acc = acc.union(prims[i].bounds);
+                right_cost[i] = acc.half_area() * self.blocks(n - i);
             }
             let mut acc = Aabb::EMPTY;
             for i in 1..n {
-                acc = acc.union(self.boxes[order[i - 1] as usize]);
+                acc = acc.union(prims[i - 1].bounds);
                 // Only cut between distinct centroids, so both sides differ.
-                if key(&order[i - 1]) == key(&order[i]) {
+                if prims[i - 1].centroid()[axis] == prims[i].centroid()[axis] {
                     continue;
                 }
-                let cost = self.params.traversal_cost + (acc.half_area() * i as f32 + right_cost[i]) * inv_area;
+                let cost = self.params.traversal_cost + (acc.half_area() * self.blocks(i) + right_cost[i]) * inv_area;
                 if best.is_none_or(|(_, _, c)| cost < c) {
                     best = Some((axis, i, cost));
                 }
             }
         }
         let (axis, mid, cost) = best?;
-        let key = |p: &u32| self.centroids[*p as usize][axis];
-        prims.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+        order(prims, axis);
         Some((mid, cost))
     }
+}
 
-    fn partition(&self, prims: &mut [u32], axis: usize, bin: usize, cb: &Aabb) -> usize {
-        let end = prims.len();
-        let mut i = 0;
-        let mut j = end;
-        while i < j {
-            if self.bin_of(prims[i], axis, cb) < bin {
-                i += 1;
-            } else {
-                j -= 1;
-                prims.swap(i, j);
-            }
+/// Moves primitives whose centroid bin along `axis` is below `bin` to the
+/// front; returns where the rest starts.
+fn partition(prims: &mut [PrimRef], axis: usize, bin: usize, binner: &Binner, cb: &Aabb) -> usize {
+    let end = prims.len();
+    let mut i = 0;
+    let mut j = end;
+    while i < j {
+        if binner.bin(prims[i].centroid(), axis) < bin {
+            i += 1;
+        } else {
+            j -= 1;
+            prims.swap(i, j);
         }
-        if i == 0 || i == end {
-            // Every centroid fell into one side (only possible with extreme
-            // values): fall back to halving.
-            return self.split_median(prims, cb);
-        }
-        i
     }
+    if i == 0 || i == end {
+        // Every centroid fell into one side (only possible with extreme
+        // values): fall back to halving.
+        return split_median(prims, cb);
+    }
+    i
+}
 
-    /// Splits at the middle index after ordering by centroid along the
-    /// longest axis; always yields two non-empty halves.
-    fn split_median(&self, prims: &mut [u32], cb: &Aabb) -> usize {
-        let axis = cb.largest_axis();
-        let mid = prims.len() / 2;
-        let centroids = &self.centroids;
-        prims.select_nth_unstable_by(mid, |&a, &b| {
-            centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
-        });
-        mid
-    }
+/// Splits at the middle index after ordering by centroid along the longest
+/// axis; always yields two non-empty halves.
+fn split_median(prims: &mut [PrimRef], cb: &Aabb) -> usize {
+    let axis = cb.largest_axis();
+    let mid = prims.len() / 2;
+    prims.select_nth_unstable_by(mid, |a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
+    mid
 }
 
 #[cfg(test)]

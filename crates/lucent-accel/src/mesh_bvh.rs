@@ -2,7 +2,7 @@
 
 use crate::wide::{Visit, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
-use lucent_geom::{PreparedRay, Ray, TriangleTest, Vec3, plane_distance};
+use lucent_geom::{PreparedRay, Ray, TrianglePack4, TriangleTest, lane_triangle, plane_distance};
 
 /// A ray hit on a mesh: distance, barycentrics and the triangle's index in
 /// the mesh's input order.
@@ -18,38 +18,69 @@ pub struct MeshHit {
     pub prim: u32,
 }
 
-/// A BVH over one mesh's triangles, traversed as a 4-wide tree, with the
-/// vertices copied in leaf order so that a leaf's triangles sit next to each
-/// other in memory.
+/// Four triangles of a leaf in SoA form with their ids (`u32::MAX` marks an
+/// unused lane, whose vertices are NaN).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pack {
+    v: TrianglePack4,
+    prim: [u32; 4],
+}
+
+const EMPTY_PACK: Pack = Pack {
+    v: [[[f32::NAN; 4]; 3]; 3],
+    prim: [u32::MAX; 4],
+};
+
+/// A BVH over one mesh's triangles, traversed as a 4-wide tree. Each leaf's
+/// triangles are copied into packs of four in structure-of-arrays form, so
+/// one vectorised test checks four triangles.
 ///
 /// Rays are tested against triangles with the watertight test unless
 /// [`MeshBvh::with_triangle_test`] picks another.
 #[derive(Clone, Debug, Default)]
 pub struct MeshBvh {
     wide: WideBvh,
-    tris: Vec<[Vec3; 3]>,
-    prims: Vec<u32>,
+    packs: Vec<Pack>,
+    n_tris: usize,
     stats: BvhStats,
     bounds: Aabb,
     test: TriangleTest,
 }
 
 impl MeshBvh {
-    /// Builds the tree. Triangles with non-finite vertices or zero-size
-    /// boxes are left out (they could never be hit); triangle indices still
-    /// refer to the mesh's order.
+    /// Builds the tree. Triangles with non-finite vertices are left out
+    /// (they could never be hit); triangle indices still refer to the mesh's
+    /// order.
     pub fn build(mesh: &TriMesh, params: &BuildParams) -> Self {
         let boxes: Vec<Aabb> = (0..mesh.n_triangles())
             .map(|t| Aabb::from_points(mesh.triangle(t)))
             .collect();
         let bvh = Bvh::build(&boxes, params);
-        let tris = bvh.prim_indices.iter().map(|&p| mesh.triangle(p as usize)).collect();
+        let mut wide = WideBvh::from_binary(&bvh);
+        let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 3 + 1);
+        wide.map_leaves(|first, count| {
+            let start = packs.len() as u32;
+            let slots = &bvh.prim_indices[first as usize..(first + count) as usize];
+            for chunk in slots.chunks(4) {
+                let mut pack = EMPTY_PACK;
+                for (lane, &prim) in chunk.iter().enumerate() {
+                    for (vtx, p) in mesh.triangle(prim as usize).into_iter().enumerate() {
+                        for (axis, x) in p.to_array().into_iter().enumerate() {
+                            pack.v[vtx][axis][lane] = x;
+                        }
+                    }
+                    pack.prim[lane] = prim;
+                }
+                packs.push(pack);
+            }
+            [start, packs.len() as u32 - start]
+        });
         Self {
-            bounds: bvh.bounds(),
-            wide: WideBvh::from_binary(&bvh),
-            tris,
+            wide,
+            packs,
+            n_tris: bvh.prim_indices.len(),
             stats: bvh.stats(),
-            prims: bvh.prim_indices,
+            bounds: bvh.bounds(),
             test: TriangleTest::default(),
         }
     }
@@ -72,13 +103,12 @@ impl MeshBvh {
 
     /// Number of triangles in the tree.
     pub fn n_triangles(&self) -> usize {
-        self.tris.len()
+        self.n_tris
     }
 
-    /// Memory held by the tree, the triangle copy and the triangle ids, in
-    /// bytes.
+    /// Memory held by the tree and its triangle packs, in bytes.
     pub fn bytes(&self) -> usize {
-        self.wide.bytes() + self.tris.len() * size_of::<[Vec3; 3]>() + self.prims.len() * size_of::<u32>()
+        self.wide.bytes() + self.packs.len() * size_of::<Pack>()
     }
 
     /// Shape of the binary tree the wide one was collapsed from.
@@ -91,15 +121,28 @@ impl MeshBvh {
         self.wide.n_nodes()
     }
 
+    /// Nearest hit among the pack's four triangles (the lowest lane among
+    /// equals, as a lane-by-lane loop would find).
     #[inline]
-    fn hit_slot(&self, ray: &PreparedRay, slot: usize, t_max: f32) -> Option<MeshHit> {
-        let tri = *self.tris.get(slot)?;
-        ray.intersect(tri, t_max).map(|h| MeshHit {
-            t: h.t,
-            u: h.u,
-            v: h.v,
-            prim: self.prims.get(slot).copied().unwrap_or(u32::MAX),
-        })
+    fn hit_pack(&self, ray: &PreparedRay, idx: usize, t_max: f32) -> Option<(usize, MeshHit)> {
+        let pack = self.packs.get(idx)?;
+        let mut best: Option<(usize, MeshHit)> = None;
+        for (lane, h) in ray.intersect4(&pack.v, t_max).into_iter().enumerate() {
+            if let Some(h) = h
+                && best.is_none_or(|(_, b)| h.t < b.t)
+            {
+                best = Some((
+                    lane,
+                    MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: pack.prim[lane],
+                    },
+                ));
+            }
+        }
+        best.map(|(lane, hit)| (idx * 4 + lane, hit))
     }
 
     /// Closest hit with `0 < t < t_max`. The triangle tests pick the hit;
@@ -109,10 +152,10 @@ impl MeshBvh {
         let ray = PreparedRay::new(ray, self.test);
         let mut best = None;
         self.wide
-            .traverse(&ray.ray, t_max, |slot, t_max| match self.hit_slot(&ray, slot, t_max) {
+            .traverse::<true, _>(&ray.ray, t_max, |idx, t_max| match self.hit_pack(&ray, idx, t_max) {
                 Some(hit) => {
-                    best = Some((slot, hit));
-                    Visit::Closer(hit.t)
+                    best = Some(hit);
+                    Visit::Closer(hit.1.t)
                 }
                 None => Visit::Miss,
             });
@@ -121,13 +164,13 @@ impl MeshBvh {
 
     /// The hit with its distance recomputed in f64 when that lies in
     /// `(0, t_max)` too (it does but where the f32 value sits at a bound,
-    /// and then the f32 value is kept).
+    /// and then the f32 value is kept). `slot` is `4 * pack + lane`.
     #[inline]
     fn refine(&self, ray: &Ray, slot: usize, hit: MeshHit, t_max: f32) -> MeshHit {
         let t = self
-            .tris
-            .get(slot)
-            .and_then(|tri| plane_distance(ray, *tri))
+            .packs
+            .get(slot / 4)
+            .and_then(|p| plane_distance(ray, lane_triangle(&p.v, slot % 4)))
             .filter(|t| *t > 0.0 && *t < t_max)
             .unwrap_or(hit.t);
         MeshHit { t, ..hit }
@@ -136,35 +179,63 @@ impl MeshBvh {
     /// Whether anything is hit with `0 < t < t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         let ray = PreparedRay::new(ray, self.test);
-        let found = |slot, _| match self.hit_slot(&ray, slot, t_max) {
-            Some(_) => Visit::Stop,
-            None => Visit::Miss,
+        let found = |idx: usize, _| match self.packs.get(idx) {
+            Some(p) if ray.intersect4(&p.v, t_max).iter().any(Option::is_some) => Visit::Stop,
+            _ => Visit::Miss,
         };
-        self.wide.traverse(&ray.ray, t_max, found).1
+        self.wide.traverse::<false, _>(&ray.ray, t_max, found).1
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
     /// order, until it returns `true`. Returns whether it was stopped.
     pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(MeshHit) -> bool) -> bool {
         let ray = PreparedRay::new(ray, self.test);
-        let each = |slot, _| match self.hit_slot(&ray, slot, t_max) {
-            Some(hit) if visit(hit) => Visit::Stop,
-            _ => Visit::Miss,
+        let each = |idx: usize, _| {
+            let Some(pack) = self.packs.get(idx) else {
+                return Visit::Miss;
+            };
+            for (lane, h) in ray.intersect4(&pack.v, t_max).into_iter().enumerate() {
+                if let Some(h) = h {
+                    let hit = MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: pack.prim[lane],
+                    };
+                    if visit(hit) {
+                        return Visit::Stop;
+                    }
+                }
+            }
+            Visit::Miss
         };
-        self.wide.traverse(&ray.ray, t_max, each).1
+        self.wide.traverse::<false, _>(&ray.ray, t_max, each).1
     }
 
-    /// The closest hit found by testing every triangle, with no tree: the
-    /// slow reference that the tree's answers are checked against. Among
-    /// equally close hits the lowest triangle index wins.
+    /// The closest hit found by testing every triangle one at a time with
+    /// the scalar test, with no tree: the slow, safe reference that the
+    /// tree's four-lane answers are checked against. Among equally close
+    /// hits the lowest triangle index wins.
     pub fn intersect_brute_force(&self, ray: &Ray, t_max: f32) -> Option<MeshHit> {
         let ray = PreparedRay::new(ray, self.test);
         let mut best: Option<(usize, MeshHit)> = None;
-        for slot in 0..self.tris.len() {
-            if let Some(h) = self.hit_slot(&ray, slot, t_max)
-                && best.is_none_or(|(_, b)| h.t < b.t || (h.t == b.t && h.prim < b.prim))
-            {
-                best = Some((slot, h));
+        for (i, pack) in self.packs.iter().enumerate() {
+            for lane in 0..4 {
+                let prim = pack.prim[lane];
+                if prim == u32::MAX {
+                    continue;
+                }
+                if let Some(h) = ray.intersect(lane_triangle(&pack.v, lane), t_max)
+                    && best.is_none_or(|(_, b)| h.t < b.t || (h.t == b.t && prim < b.prim))
+                {
+                    let hit = MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim,
+                    };
+                    best = Some((4 * i + lane, hit));
+                }
             }
         }
         best.map(|(slot, hit)| self.refine(&ray.ray, slot, hit, t_max))
@@ -175,7 +246,7 @@ impl MeshBvh {
 mod tests {
     use super::*;
     use crate::BuildQuality;
-    use lucent_geom::{Pcg32, intersect_triangle, shapes};
+    use lucent_geom::{Pcg32, Vec3, intersect_triangle, shapes};
 
     /// Ordinary, needle, tiny and huge triangles, exact duplicates sharing
     /// edges, and exactly degenerate ones (a point, a line).
@@ -219,6 +290,7 @@ mod tests {
             n_bins: 2,
             traversal_cost: 0.0,
             exact_below: 0,
+            prim_block: 1,
         });
         params
     }
@@ -299,7 +371,25 @@ mod tests {
                 .collect();
             let binary = Bvh::build(&boxes, &params);
             let bvh = MeshBvh::build(&mesh, &params);
-            crate::wide::check(&bvh.wide, bvh.tris.len(), |s| Aabb::from_points(bvh.tris[s]));
+            crate::wide::check(&bvh.wide, bvh.packs.len(), |p| {
+                (0..4)
+                    .filter(|&l| bvh.packs[p].prim[l] != u32::MAX)
+                    .fold(Aabb::EMPTY, |b, l| {
+                        b.union(Aabb::from_points(lane_triangle(&bvh.packs[p].v, l)))
+                    })
+            });
+            let mut ids: Vec<u32> = bvh
+                .packs
+                .iter()
+                .flat_map(|p| p.prim)
+                .filter(|&p| p != u32::MAX)
+                .collect();
+            ids.sort_unstable();
+            assert_eq!(
+                ids,
+                (0..mesh.n_triangles() as u32).collect::<Vec<_>>(),
+                "every triangle once"
+            );
             let mut rng = Pcg32::new(3, 3);
             for _ in 0..1000 {
                 let ray = random_ray(&mut rng);

@@ -93,6 +93,7 @@ impl SceneBvh {
             .collect();
         let top_params = BuildParams {
             max_leaf_size: 1,
+            prim_block: 1,
             ..*params
         };
         let tlas = Bvh::build(&boxes, &top_params);

@@ -27,8 +27,10 @@ const STACK: usize = 3 * MAX_DEPTH + 4;
 /// 1 + 2 gamma(3): the exit distance's worst relative rounding error, twice.
 const EXIT_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
-/// Four children's boxes and entries (112 bytes).
+/// Four children's boxes and entries (112 bytes, padded to two cache lines
+/// so that no node straddles three).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
 pub(crate) struct WideNode {
     /// `bounds[0]` are the lower corners, `bounds[1]` the upper ones, each
     /// as `[axis][lane]`. Unused lanes hold an inverted box that no ray
@@ -102,7 +104,8 @@ fn has_nan(ray: &Ray) -> bool {
 
 impl WideBvh {
     /// Collapses a binary tree. The slots of the result are the binary
-    /// tree's positions in [`Bvh::prim_indices`].
+    /// tree's positions in [`Bvh::prim_indices`] until
+    /// [`WideBvh::map_leaves`] renumbers them.
     pub(crate) fn from_binary(bvh: &Bvh) -> Self {
         let mut wide = WideBvh::default();
         if bvh.nodes.is_empty() {
@@ -139,6 +142,12 @@ impl WideBvh {
             kids.insert(i, f + 1);
             kids.insert(i, f);
         }
+        // Largest box first: any-hit walks children in this order, and a
+        // bigger box is likelier to hold an occluder (the SAH's premise).
+        kids.sort_by(|&a, &b| {
+            let area = |k: usize| bvh.nodes[k].aabb().half_area();
+            area(b).total_cmp(&area(a))
+        });
         self.fill(bvh, at, &kids);
     }
 
@@ -166,6 +175,14 @@ impl WideBvh {
         }
     }
 
+    /// Replaces every leaf's `[first, count]` by `f(first, count)`, in leaf
+    /// order.
+    pub(crate) fn map_leaves(&mut self, mut f: impl FnMut(u32, u32) -> [u32; 2]) {
+        for leaf in &mut self.leaves {
+            *leaf = f(leaf[0], leaf[1]);
+        }
+    }
+
     /// Memory held by nodes and leaf records, in bytes.
     pub(crate) fn bytes(&self) -> usize {
         self.nodes.len() * size_of::<WideNode>() + self.leaves.len() * size_of::<[u32; 2]>()
@@ -176,12 +193,13 @@ impl WideBvh {
         self.nodes.len()
     }
 
-    /// Ordered traversal over slots, nearest child first. `visit` gets a
+    /// Traversal over slots, nearest child first when `ORDERED` (else in
+    /// tree order, which saves the sort where any hit will do). `visit` gets a
     /// slot and the current `t_max` and says what it found; a
     /// [`Visit::Closer`] hit shrinks `t_max`, [`Visit::Stop`] ends the walk.
     /// Returns the final `t_max` and whether the walk was stopped.
     #[inline]
-    pub(crate) fn traverse<F>(&self, ray: &Ray, mut t_max: f32, mut visit: F) -> (f32, bool)
+    pub(crate) fn traverse<const ORDERED: bool, F>(&self, ray: &Ray, mut t_max: f32, mut visit: F) -> (f32, bool)
     where
         F: FnMut(usize, f32) -> Visit,
     {
@@ -198,10 +216,13 @@ impl WideBvh {
             // The entered children, sorted far to near (at most four).
             let mut cand = [(0.0f32, 0u32); 4];
             let mut n = 0;
-            for lane in 0..4 {
+            // Unordered: the last candidate is visited first, so collect the
+            // lanes backwards to visit them in stored order.
+            for i in 0..4 {
+                let lane = if ORDERED { i } else { 3 - i };
                 if hit[lane] {
                     let mut j = n;
-                    while j > 0 && cand[j - 1].0 < t_in[lane] {
+                    while ORDERED && j > 0 && cand[j - 1].0 < t_in[lane] {
                         cand[j] = cand[j - 1];
                         j -= 1;
                     }

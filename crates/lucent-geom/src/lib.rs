@@ -33,4 +33,7 @@ pub use mesh::{MeshError, TriMesh};
 pub use offset::offset_ray_origin;
 pub use ray::Ray;
 pub use rng::{Pcg32, hash_u64};
-pub use triangle::{PreparedRay, TriangleHit, TriangleTest, intersect_triangle, plane_distance, triangle_normal};
+pub use triangle::{
+    PreparedRay, TriangleHit, TrianglePack4, TriangleTest, intersect_triangle, lane_triangle, plane_distance,
+    triangle_normal,
+};

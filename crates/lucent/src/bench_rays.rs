@@ -85,16 +85,19 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
     };
     let threads = usize::from(args.threads);
     let params = BuildParams::for_quality(quality);
-    // One discarded build warms the allocator and caches, then the median of three.
-    let mut build_times = Vec::new();
-    let mut bvh = MeshBvh::default();
-    for _ in 0..4 {
-        let start = Instant::now();
-        bvh = with_threads(threads, || MeshBvh::build(&mesh, &params))?;
-        build_times.push(start.elapsed().as_secs_f64());
-    }
-    build_times.remove(0);
-    let build_s = median(&mut build_times);
+    // In a pool of `threads` workers started once: one discarded build warms
+    // the allocator and caches, then the median of five.
+    let (bvh, build_s) = with_threads(threads, || {
+        let mut build_times = Vec::new();
+        let mut bvh = MeshBvh::default();
+        for _ in 0..6 {
+            let start = Instant::now();
+            bvh = MeshBvh::build(&mesh, &params);
+            build_times.push(start.elapsed().as_secs_f64());
+        }
+        build_times.remove(0);
+        (bvh, median(&mut build_times))
+    })?;
     let bvh = bvh.with_triangle_test(test);
 
     let mut hits = vec![Hit::MISS; rays.len()];
