@@ -149,17 +149,20 @@ impl MeshBvh {
     /// its distance is then recomputed in f64 ([`plane_distance`]), so `t` is
     /// nearly exact even for grazing rays.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<MeshHit> {
-        let ray = PreparedRay::new(ray, self.test);
+        // The walk reads the caller's ray, not the prepared copy: reading
+        // the copy's fields back as wider loads right after they were
+        // stored one by one stalls store-to-load forwarding.
+        let prepared = PreparedRay::new(ray, self.test);
         let mut best = None;
-        self.wide
-            .traverse::<true, _>(&ray.ray, t_max, |idx, t_max| match self.hit_pack(&ray, idx, t_max) {
-                Some(hit) => {
-                    best = Some(hit);
-                    Visit::Closer(hit.1.t)
-                }
-                None => Visit::Miss,
-            });
-        best.map(|(slot, hit)| self.refine(&ray.ray, slot, hit, t_max))
+        let visit = |idx, t_max| match self.hit_pack(&prepared, idx, t_max) {
+            Some(hit) => {
+                best = Some(hit);
+                Visit::Closer(hit.1.t)
+            }
+            None => Visit::Miss,
+        };
+        self.wide.traverse::<true, _>(ray, t_max, visit);
+        best.map(|(slot, hit)| self.refine(ray, slot, hit, t_max))
     }
 
     /// The hit with its distance recomputed in f64 when that lies in
@@ -178,23 +181,23 @@ impl MeshBvh {
 
     /// Whether anything is hit with `0 < t < t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        let ray = PreparedRay::new(ray, self.test);
+        let prepared = PreparedRay::new(ray, self.test);
         let found = |idx: usize, _| match self.packs.get(idx) {
-            Some(p) if ray.intersect4(&p.v, t_max).iter().any(Option::is_some) => Visit::Stop,
+            Some(p) if prepared.intersect4(&p.v, t_max).iter().any(Option::is_some) => Visit::Stop,
             _ => Visit::Miss,
         };
-        self.wide.traverse::<false, _>(&ray.ray, t_max, found).1
+        self.wide.traverse::<false, _>(ray, t_max, found).1
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
     /// order, until it returns `true`. Returns whether it was stopped.
     pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(MeshHit) -> bool) -> bool {
-        let ray = PreparedRay::new(ray, self.test);
+        let prepared = PreparedRay::new(ray, self.test);
         let each = |idx: usize, _| {
             let Some(pack) = self.packs.get(idx) else {
                 return Visit::Miss;
             };
-            for (lane, h) in ray.intersect4(&pack.v, t_max).into_iter().enumerate() {
+            for (lane, h) in prepared.intersect4(&pack.v, t_max).into_iter().enumerate() {
                 if let Some(h) = h {
                     let hit = MeshHit {
                         t: h.t,
@@ -209,7 +212,7 @@ impl MeshBvh {
             }
             Visit::Miss
         };
-        self.wide.traverse::<false, _>(&ray.ray, t_max, each).1
+        self.wide.traverse::<false, _>(ray, t_max, each).1
     }
 
     /// The closest hit found by testing every triangle one at a time with

@@ -16,7 +16,7 @@
 //! actually touches, which keeps the watertight triangle test watertight.
 
 use crate::{Bvh, MAX_DEPTH};
-use lucent_geom::Ray;
+use lucent_geom::{Aabb, Ray};
 
 /// Marks a child entry as a leaf (index into [`WideBvh::leaves`]).
 const LEAF_BIT: u32 = 1 << 31;
@@ -24,6 +24,9 @@ const LEAF_BIT: u32 = 1 << 31;
 const NO_CHILD: u32 = u32::MAX;
 /// Stack entries: each level pushes at most three children.
 const STACK: usize = 3 * MAX_DEPTH + 4;
+/// The stack of shallow trees (up to 16 interior levels, which covers
+/// meshes of millions of triangles): smaller, so cheaper to set up per ray.
+const SHALLOW_STACK: usize = 48;
 /// 1 + 2 gamma(3): the exit distance's worst relative rounding error, twice.
 const EXIT_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
@@ -51,6 +54,13 @@ const EMPTY_NODE: WideNode = WideNode {
 pub(crate) struct WideBvh {
     nodes: Vec<WideNode>,
     leaves: Vec<[u32; 2]>,
+    /// Bounds of everything (the root's children together): rays that miss
+    /// it return before any per-ray setup.
+    bounds: Aabb,
+    /// Most interior nodes on a path from the root to a leaf; traversal
+    /// pushes at most three entries per interior node, so this picks the
+    /// size of the (zero-initialised) stack.
+    depth: usize,
 }
 
 /// The per-ray constants of the slab test.
@@ -112,17 +122,18 @@ impl WideBvh {
             return wide;
         }
         wide.nodes.push(EMPTY_NODE);
+        wide.bounds = bvh.bounds();
         if bvh.nodes[0].is_leaf() {
             // A single leaf: a root with one child.
-            wide.fill(bvh, 0, &[0]);
+            wide.fill(bvh, 0, &[0], 1);
         } else {
-            wide.collapse(bvh, 0, 0);
+            wide.collapse(bvh, 0, 0, 1);
         }
         wide
     }
 
     /// Fills wide node `at` from binary interior node `idx`.
-    fn collapse(&mut self, bvh: &Bvh, idx: usize, at: usize) {
+    fn collapse(&mut self, bvh: &Bvh, idx: usize, at: usize, depth: usize) {
         let first = bvh.nodes[idx].first as usize;
         let mut kids: Vec<usize> = vec![first, first + 1];
         // Open the largest interior child until there are four.
@@ -148,10 +159,12 @@ impl WideBvh {
             let area = |k: usize| bvh.nodes[k].aabb().half_area();
             area(b).total_cmp(&area(a))
         });
-        self.fill(bvh, at, &kids);
+        self.fill(bvh, at, &kids, depth);
     }
 
-    fn fill(&mut self, bvh: &Bvh, at: usize, kids: &[usize]) {
+    /// Fills wide node `at` (at interior level `depth`, root 1) with `kids`.
+    fn fill(&mut self, bvh: &Bvh, at: usize, kids: &[usize], depth: usize) {
+        self.depth = self.depth.max(depth);
         let mut node = EMPTY_NODE;
         let mut interior = Vec::new();
         for (lane, &k) in kids.iter().enumerate() {
@@ -171,7 +184,7 @@ impl WideBvh {
         }
         self.nodes[at] = node;
         for (child_at, k) in interior {
-            self.collapse(bvh, k, child_at);
+            self.collapse(bvh, k, child_at, depth + 1);
         }
     }
 
@@ -199,15 +212,31 @@ impl WideBvh {
     /// [`Visit::Closer`] hit shrinks `t_max`, [`Visit::Stop`] ends the walk.
     /// Returns the final `t_max` and whether the walk was stopped.
     #[inline]
-    pub(crate) fn traverse<const ORDERED: bool, F>(&self, ray: &Ray, mut t_max: f32, mut visit: F) -> (f32, bool)
+    pub(crate) fn traverse<const ORDERED: bool, F>(&self, ray: &Ray, t_max: f32, visit: F) -> (f32, bool)
     where
         F: FnMut(usize, f32) -> Visit,
     {
-        if self.nodes.is_empty() || has_nan(ray) {
+        if self.nodes.is_empty()
+            || has_nan(ray)
+            || self.bounds.intersect_ray(ray.origin, ray.inv_dir(), t_max).is_none()
+        {
             return (t_max, false);
         }
+        if 3 * self.depth <= SHALLOW_STACK {
+            self.walk::<ORDERED, SHALLOW_STACK, F>(ray, t_max, visit)
+        } else {
+            self.walk::<ORDERED, STACK, F>(ray, t_max, visit)
+        }
+    }
+
+    /// [`WideBvh::traverse`] with a stack of `N` entries.
+    #[inline(always)]
+    fn walk<const ORDERED: bool, const N: usize, F>(&self, ray: &Ray, mut t_max: f32, mut visit: F) -> (f32, bool)
+    where
+        F: FnMut(usize, f32) -> Visit,
+    {
         let slab = SlabRay::new(ray);
-        let mut stack = [(0.0f32, 0u32); STACK];
+        let mut stack = [(0.0f32, 0u32); N];
         let mut sp = 0usize;
         let mut node_idx = 0usize;
         'nodes: loop {
@@ -233,7 +262,7 @@ impl WideBvh {
             let mut next = None;
             if n > 0 {
                 for &c in &cand[..n - 1] {
-                    if sp < STACK {
+                    if sp < N {
                         stack[sp] = c;
                         sp += 1;
                     }

@@ -262,19 +262,27 @@ impl PreparedRay {
                 }
             }
         }
-        let mut out = [None; 4];
+        // All four lanes at once, with non-short-circuit `&`/`|` so that the
+        // decision vectorises too; then one branch per lane.
+        let mut ok = [false; 4];
+        let mut t = [0.0f32; 4];
+        let mut inv_det = [0.0f32; 4];
         for l in 0..4 {
             let (ul, vl, wl) = (u[l], v[l], w[l]);
-            let mixed = (ul < 0.0 || vl < 0.0 || wl < 0.0) && (ul > 0.0 || vl > 0.0 || wl > 0.0);
+            let mixed = ((ul < 0.0) | (vl < 0.0) | (wl < 0.0)) & ((ul > 0.0) | (vl > 0.0) | (wl > 0.0));
             let det = ul + vl + wl;
             let t_scaled = ul * (sz * z[0][l]) + vl * (sz * z[1][l]) + wl * (sz * z[2][l]);
-            let inv_det = 1.0 / det;
-            let t = t_scaled * inv_det;
-            if !mixed && det != 0.0 && t > 0.0 && t < t_max && inv_det.is_finite() {
+            inv_det[l] = 1.0 / det;
+            t[l] = t_scaled * inv_det[l];
+            ok[l] = !mixed & (det != 0.0) & (t[l] > 0.0) & (t[l] < t_max) & (inv_det[l].abs() < f32::INFINITY);
+        }
+        let mut out = [None; 4];
+        for l in 0..4 {
+            if ok[l] {
                 out[l] = Some(TriangleHit {
-                    t,
-                    u: vl * inv_det,
-                    v: wl * inv_det,
+                    t: t[l],
+                    u: v[l] * inv_det[l],
+                    v: w[l] * inv_det[l],
                 });
             }
         }
