@@ -127,6 +127,7 @@ const EMPTY_BIN: Bin = Bin {
 /// A primitive as the builder moves it around: its box and its index, kept
 /// together so that partitioning streams through memory.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
 struct PrimRef {
     bounds: Aabb,
     id: u32,
@@ -397,15 +398,22 @@ impl Builder {
 /// front; returns where the rest starts.
 fn partition(prims: &mut [PrimRef], axis: usize, bin: usize, binner: &Binner, cb: &Aabb) -> usize {
     let end = prims.len();
-    let mut i = 0;
-    let mut j = end;
-    while i < j {
-        if binner.bin(prims[i].centroid(), axis) < bin {
+    let left = |p: &PrimRef| binner.bin(p.centroid(), axis) < bin;
+    // Hoare-style: swap only pairs that are both on the wrong side.
+    let (mut i, mut j) = (0, end);
+    loop {
+        while i < j && left(&prims[i]) {
             i += 1;
-        } else {
-            j -= 1;
-            prims.swap(i, j);
         }
+        while i < j && !left(&prims[j - 1]) {
+            j -= 1;
+        }
+        if i + 1 >= j {
+            break;
+        }
+        prims.swap(i, j - 1);
+        i += 1;
+        j -= 1;
     }
     if i == 0 || i == end {
         // Every centroid fell into one side (only possible with extreme
