@@ -218,10 +218,10 @@ impl PreparedRay {
     /// assert_eq!(hits[0].map(|h| h.t), Some(2.0));
     /// assert!(hits[1..].iter().all(Option::is_none));
     /// ```
-    #[inline]
+    #[inline(always)]
     pub fn intersect4(&self, pack: &TrianglePack4, t_max: f32) -> [Option<TriangleHit>; 4] {
         if self.test == TriangleTest::MollerTrumbore {
-            return [0, 1, 2, 3].map(|l| intersect_triangle(&self.ray, lane_triangle(pack, l), t_max));
+            return self.intersect4_moller_trumbore(pack, t_max);
         }
         let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.shear;
@@ -287,6 +287,15 @@ impl PreparedRay {
             }
         }
         out
+    }
+}
+
+impl PreparedRay {
+    /// [`PreparedRay::intersect4`] for Moller-Trumbore: lane by lane, kept
+    /// out of line so the watertight path inlines into traversal loops.
+    #[inline(never)]
+    fn intersect4_moller_trumbore(&self, pack: &TrianglePack4, t_max: f32) -> [Option<TriangleHit>; 4] {
+        [0, 1, 2, 3].map(|l| intersect_triangle(&self.ray, lane_triangle(pack, l), t_max))
     }
 }
 
