@@ -43,7 +43,8 @@ impl BuildQuality {
 pub struct BuildParams {
     /// Leaves never hold more primitives than this (1 to 16).
     pub max_leaf_size: u32,
-    /// Centroid bins per axis for the SAH sweep (2 to 64).
+    /// Centroid bins per axis for the SAH sweep (2 to 32; a node with fewer
+    /// primitives than this uses one bin per primitive).
     pub n_bins: usize,
     /// Cost of visiting a node, relative to one primitive test.
     pub traversal_cost: f32,
@@ -112,6 +113,9 @@ where
 {
     (a(), b())
 }
+
+/// Most bins per axis (the bins live on the stack, cleared per node).
+const MAX_BINS: usize = 32;
 
 #[derive(Clone, Copy)]
 struct Bin {
@@ -189,7 +193,7 @@ impl Bvh {
     pub fn build(boxes: &[Aabb], params: &BuildParams) -> Bvh {
         let params = BuildParams {
             max_leaf_size: params.max_leaf_size.clamp(1, 16),
-            n_bins: params.n_bins.clamp(2, 64),
+            n_bins: params.n_bins.clamp(2, MAX_BINS),
             traversal_cost: params.traversal_cost.max(0.0),
             exact_below: params.exact_below,
             prim_block: params.prim_block.clamp(1, 16),
@@ -278,7 +282,7 @@ impl Builder {
                 None => None,
             }
         } else {
-            let binner = Binner::new(&centroid_bounds, self.params.n_bins);
+            let binner = Binner::new(&centroid_bounds, self.params.n_bins.min(count));
             match self.find_sah_split(prims, &bounds, &binner) {
                 Some((_, _, cost)) if cost >= leaf_cost && !must_split => None,
                 Some((axis, bin, _)) => Some(partition(prims, axis, bin, &binner, &centroid_bounds)),
@@ -316,13 +320,13 @@ impl Builder {
     /// to one block test), or `None` when the centroids do not spread. Bins
     /// all three axes in one pass over the primitives.
     fn find_sah_split(&self, prims: &[PrimRef], bounds: &Aabb, binner: &Binner) -> Option<(usize, usize, f32)> {
-        let n_bins = self.params.n_bins;
+        let n_bins = binner.n_bins;
         let inv_area = 1.0 / bounds.half_area().max(f32::MIN_POSITIVE);
         let spread = binner.scale.map(|k| k > 0.0);
         if spread == [false; 3] {
             return None;
         }
-        let mut bins = [[EMPTY_BIN; 64]; 3];
+        let mut bins = [[EMPTY_BIN; MAX_BINS]; 3];
         for p in prims {
             let c = p.centroid();
             for axis in (0..3).filter(|&a| spread[a]) {
@@ -335,7 +339,7 @@ impl Builder {
         for axis in (0..3).filter(|&a| spread[a]) {
             let bins = &bins[axis];
             // Right-to-left sweep: area x blocks of the right side per split.
-            let mut right_cost = [0.0f32; 64];
+            let mut right_cost = [0.0f32; MAX_BINS];
             let mut acc = EMPTY_BIN;
             for i in (1..n_bins).rev() {
                 acc.bounds = acc.bounds.union(bins[i].bounds);
