@@ -218,6 +218,36 @@ mod tests {
     }
 
     #[test]
+    fn nan_infinite_and_zero_rays_never_hit_or_panic() {
+        let sphere = Arc::new(MeshBvh::build(&shapes::icosphere(2), &BuildParams::default()));
+        let instances = vec![
+            Instance::new(Affine3A::IDENTITY, 0),
+            Instance::new(Affine3A::from_translation(Vec3::X * 3.0), 0),
+        ];
+        let scene = SceneBvh::build(
+            vec![sphere],
+            instances.into_iter().flatten().collect(),
+            &BuildParams::default(),
+        );
+        for ray in [
+            Ray::new(Vec3::splat(f32::NAN), Vec3::X),
+            Ray::new(Vec3::new(-5.0, 0.0, 0.0), Vec3::new(f32::NAN, 0.0, 0.0)),
+            Ray::new(Vec3::new(-5.0, 0.0, 0.0), Vec3::ZERO),
+            Ray::new(Vec3::new(-5.0, 0.0, 0.0), Vec3::new(f32::INFINITY, 0.0, 0.0)),
+            Ray::new(Vec3::splat(f32::NEG_INFINITY), Vec3::X),
+        ] {
+            assert!(scene.intersect(&ray, f32::INFINITY).is_none(), "{ray:?}");
+            assert!(!scene.occluded(&ray, f32::INFINITY), "{ray:?}");
+            assert!(!scene.for_each_hit(&ray, f32::INFINITY, |_| true), "{ray:?}");
+        }
+        // A NaN or negative t_max finds nothing either.
+        let ray = Ray::new(Vec3::new(-5.0, 0.01, 0.0), Vec3::X);
+        assert!(scene.intersect(&ray, f32::INFINITY).is_some());
+        assert!(scene.intersect(&ray, f32::NAN).is_none());
+        assert!(!scene.occluded(&ray, -1.0));
+    }
+
+    #[test]
     fn singular_transforms_and_missing_meshes_are_harmless() {
         assert!(Instance::new(Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0)), 0).is_none());
         assert!(Instance::new(Affine3A::from_translation(Vec3::splat(f32::NAN)), 0).is_none());
