@@ -8,9 +8,10 @@
 //! compiler vectorises (SSE on every x86-64, NEON on aarch64); no intrinsics
 //! and no `unsafe`.
 //!
-//! Traversal is ordered: the children a ray enters are visited nearest
-//! first, and a stacked child is skipped when a hit closer than its entry
-//! distance has been found meanwhile. The slab test is conservative in the
+//! Closest-hit traversal is ordered: the children a ray enters are visited
+//! nearest first, and a stacked child is skipped when a hit closer than its
+//! entry distance has been found meanwhile. Any-hit traversal skips the sort
+//! and visits children in stored order, largest box first. The slab test is conservative in the
 //! manner of Ize ("Robust BVH Ray Traversal", JCGT 2013): exit distances are
 //! scaled up by a few ulps so that rounding never drops a box the ray
 //! actually touches, which keeps the watertight triangle test watertight.
