@@ -1,7 +1,8 @@
 //! A BVH over one triangle mesh (the bottom level).
 
+use crate::wide::{Visit, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
-use lucent_geom::{Ray, Vec3, intersect_triangle};
+use lucent_geom::{PreparedRay, Ray, TrianglePack4, TriangleTest, lane_triangle, plane_distance};
 
 /// A ray hit on a mesh: distance, barycentrics and the triangle's index in
 /// the mesh's input order.
@@ -17,155 +18,392 @@ pub struct MeshHit {
     pub prim: u32,
 }
 
-/// A BVH over one mesh's triangles, with the vertices copied in leaf order so
-/// that a leaf's triangles sit next to each other in memory.
+/// Four triangles of a leaf in SoA form with their ids (`u32::MAX` marks an
+/// unused lane, whose vertices are NaN).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pack {
+    v: TrianglePack4,
+    prim: [u32; 4],
+}
+
+const EMPTY_PACK: Pack = Pack {
+    v: [[[f32::NAN; 4]; 3]; 3],
+    prim: [u32::MAX; 4],
+};
+
+/// A BVH over one mesh's triangles, traversed as a 4-wide tree. Each leaf's
+/// triangles are copied into packs of four in structure-of-arrays form, so
+/// one vectorised test checks four triangles.
+///
+/// Rays are tested against triangles with the watertight test unless
+/// [`MeshBvh::with_triangle_test`] picks another.
 #[derive(Clone, Debug, Default)]
 pub struct MeshBvh {
-    bvh: Bvh,
-    tris: Vec<[Vec3; 3]>,
+    wide: WideBvh,
+    packs: Vec<Pack>,
+    n_tris: usize,
+    stats: BvhStats,
+    bounds: Aabb,
+    test: TriangleTest,
 }
 
 impl MeshBvh {
-    /// Builds the tree. Triangles with non-finite vertices are left out.
+    /// Builds the tree. Triangles with non-finite vertices are left out
+    /// (they could never be hit); triangle indices still refer to the mesh's
+    /// order.
     pub fn build(mesh: &TriMesh, params: &BuildParams) -> Self {
         let boxes: Vec<Aabb> = (0..mesh.n_triangles())
             .map(|t| Aabb::from_points(mesh.triangle(t)))
             .collect();
         let bvh = Bvh::build(&boxes, params);
-        let tris = bvh.prim_indices.iter().map(|&p| mesh.triangle(p as usize)).collect();
-        Self { bvh, tris }
+        let mut wide = WideBvh::from_binary(&bvh);
+        let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 3 + 1);
+        wide.map_leaves(|first, count| {
+            let start = packs.len() as u32;
+            let slots = &bvh.prim_indices[first as usize..(first + count) as usize];
+            for chunk in slots.chunks(4) {
+                let mut pack = EMPTY_PACK;
+                for (lane, &prim) in chunk.iter().enumerate() {
+                    for (vtx, p) in mesh.triangle(prim as usize).into_iter().enumerate() {
+                        for (axis, x) in p.to_array().into_iter().enumerate() {
+                            pack.v[vtx][axis][lane] = x;
+                        }
+                    }
+                    pack.prim[lane] = prim;
+                }
+                packs.push(pack);
+            }
+            [start, packs.len() as u32 - start]
+        });
+        Self {
+            wide,
+            packs,
+            n_tris: bvh.prim_indices.len(),
+            stats: bvh.stats(),
+            bounds: bvh.bounds(),
+            test: TriangleTest::default(),
+        }
+    }
+
+    /// The same tree using `test` for rays against triangles.
+    pub fn with_triangle_test(mut self, test: TriangleTest) -> Self {
+        self.test = test;
+        self
+    }
+
+    /// The ray-triangle test in use.
+    pub fn triangle_test(&self) -> TriangleTest {
+        self.test
     }
 
     /// Object-space bounds of the triangles in the tree.
     pub fn bounds(&self) -> Aabb {
-        self.bvh.bounds()
+        self.bounds
     }
 
     /// Number of triangles in the tree.
     pub fn n_triangles(&self) -> usize {
-        self.tris.len()
+        self.n_tris
     }
 
-    /// Memory held by the tree and its triangle copy, in bytes.
+    /// Memory held by the tree and its triangle packs, in bytes.
     pub fn bytes(&self) -> usize {
-        self.bvh.bytes() + self.tris.len() * size_of::<[Vec3; 3]>()
+        self.wide.bytes() + self.packs.len() * size_of::<Pack>()
     }
 
-    /// Shape of the tree.
+    /// Shape of the binary tree the wide one was collapsed from.
     pub fn stats(&self) -> BvhStats {
-        self.bvh.stats()
+        self.stats
     }
 
-    /// The underlying tree.
-    pub fn bvh(&self) -> &Bvh {
-        &self.bvh
+    /// Number of 4-wide nodes.
+    pub fn n_wide_nodes(&self) -> usize {
+        self.wide.n_nodes()
     }
 
-    fn hit_slot(&self, ray: &Ray, slot: usize, t_max: f32) -> Option<MeshHit> {
-        intersect_triangle(ray, self.tris[slot], t_max).map(|h| MeshHit {
-            t: h.t,
-            u: h.u,
-            v: h.v,
-            prim: self.bvh.prim_indices[slot],
-        })
+    /// Nearest hit among the pack's four triangles (the lowest lane among
+    /// equals, as a lane-by-lane loop would find).
+    #[inline]
+    fn hit_pack(&self, ray: &PreparedRay, idx: usize, t_max: f32) -> Option<(usize, MeshHit)> {
+        let pack = self.packs.get(idx)?;
+        let mut best: Option<(usize, MeshHit)> = None;
+        for (lane, h) in ray.intersect4(&pack.v, t_max).into_iter().enumerate() {
+            if let Some(h) = h
+                && best.is_none_or(|(_, b)| h.t < b.t)
+            {
+                best = Some((
+                    lane,
+                    MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: pack.prim[lane],
+                    },
+                ));
+            }
+        }
+        best.map(|(lane, hit)| (idx * 4 + lane, hit))
     }
 
-    /// Closest hit with `0 < t < t_max`.
+    /// Closest hit with `0 < t < t_max`. The triangle tests pick the hit;
+    /// its distance is then recomputed in f64 ([`plane_distance`]), so `t` is
+    /// nearly exact even for grazing rays.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<MeshHit> {
+        // The walk reads the caller's ray, not the prepared copy: reading
+        // the copy's fields back as wider loads right after they were
+        // stored one by one stalls store-to-load forwarding.
+        let prepared = PreparedRay::new(ray, self.test);
         let mut best = None;
-        self.bvh.closest_slots(ray, t_max, |slot, t_max| {
-            let hit = self.hit_slot(ray, slot, t_max)?;
-            best = Some(hit);
-            Some(hit.t)
-        });
-        best
+        let visit = |idx, t_max| match self.hit_pack(&prepared, idx, t_max) {
+            Some(hit) => {
+                best = Some(hit);
+                Visit::Closer(hit.1.t)
+            }
+            None => Visit::Miss,
+        };
+        self.wide.traverse::<true, _>(ray, t_max, visit);
+        best.map(|(slot, hit)| self.refine(ray, slot, hit, t_max))
+    }
+
+    /// The hit with its distance recomputed in f64 when that lies in
+    /// `(0, t_max)` too (it does but where the f32 value sits at a bound,
+    /// and then the f32 value is kept). `slot` is `4 * pack + lane`.
+    #[inline]
+    fn refine(&self, ray: &Ray, slot: usize, hit: MeshHit, t_max: f32) -> MeshHit {
+        let t = self
+            .packs
+            .get(slot / 4)
+            .and_then(|p| plane_distance(ray, lane_triangle(&p.v, slot % 4)))
+            .filter(|t| *t > 0.0 && *t < t_max)
+            .unwrap_or(hit.t);
+        MeshHit { t, ..hit }
     }
 
     /// Whether anything is hit with `0 < t < t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        self.bvh
-            .any_slots(ray, t_max, |slot| self.hit_slot(ray, slot, t_max).is_some())
+        let prepared = PreparedRay::new(ray, self.test);
+        let found = |idx: usize, _| match self.packs.get(idx) {
+            Some(p) if prepared.intersect4(&p.v, t_max).iter().any(Option::is_some) => Visit::Stop,
+            _ => Visit::Miss,
+        };
+        self.wide.traverse::<false, _>(ray, t_max, found).1
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
     /// order, until it returns `true`. Returns whether it was stopped.
     pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(MeshHit) -> bool) -> bool {
-        self.bvh.any_slots(ray, t_max, |slot| {
-            self.hit_slot(ray, slot, t_max).is_some_and(&mut visit)
-        })
+        let prepared = PreparedRay::new(ray, self.test);
+        let each = |idx: usize, _| {
+            let Some(pack) = self.packs.get(idx) else {
+                return Visit::Miss;
+            };
+            for (lane, h) in prepared.intersect4(&pack.v, t_max).into_iter().enumerate() {
+                if let Some(h) = h {
+                    let hit = MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: pack.prim[lane],
+                    };
+                    if visit(hit) {
+                        return Visit::Stop;
+                    }
+                }
+            }
+            Visit::Miss
+        };
+        self.wide.traverse::<false, _>(ray, t_max, each).1
+    }
+
+    /// The closest hit found by testing every triangle one at a time with
+    /// the scalar test, with no tree: the slow, safe reference that the
+    /// tree's four-lane answers are checked against. Among equally close
+    /// hits the lowest triangle index wins.
+    pub fn intersect_brute_force(&self, ray: &Ray, t_max: f32) -> Option<MeshHit> {
+        let ray = PreparedRay::new(ray, self.test);
+        let mut best: Option<(usize, MeshHit)> = None;
+        for (i, pack) in self.packs.iter().enumerate() {
+            for lane in 0..4 {
+                let prim = pack.prim[lane];
+                if prim == u32::MAX {
+                    continue;
+                }
+                if let Some(h) = ray.intersect(lane_triangle(&pack.v, lane), t_max)
+                    && best.is_none_or(|(_, b)| h.t < b.t || (h.t == b.t && prim < b.prim))
+                {
+                    let hit = MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim,
+                    };
+                    best = Some((4 * i + lane, hit));
+                }
+            }
+        }
+        best.map(|(slot, hit)| self.refine(&ray.ray, slot, hit, t_max))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lucent_geom::{Pcg32, shapes};
+    use crate::BuildQuality;
+    use lucent_geom::{Pcg32, Vec3, intersect_triangle, shapes};
 
+    /// Ordinary, needle, tiny and huge triangles, exact duplicates sharing
+    /// edges, and exactly degenerate ones (a point, a line).
     fn random_soup(n: usize, seed: u64) -> TriMesh {
         let mut rng = Pcg32::new(seed, 3);
         let mut p = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let mut positions = Vec::new();
         for i in 0..n {
             let c = p() * 10.0;
-            // Mix ordinary, needle, tiny and huge triangles.
             let s = match i % 7 {
                 0 => 1e-4,
                 1 => 20.0,
+                2 => 1e4,
                 _ => 0.7,
             };
             positions.extend([c, c + s * (p() - 0.5), c + s * (p() - 0.5)]);
         }
-        // A few exactly degenerate ones: a point and a line.
         let c = p();
         positions.extend([c, c, c, c, c + Vec3::X, c + 2.0 * Vec3::X]);
         let n_tris = positions.len() / 3;
-        let indices = (0..n_tris as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        let mut indices: Vec<[u32; 3]> = (0..n_tris as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        // Neighbours sharing an edge with existing triangles.
+        for t in 0..(n_tris as u32 / 10) {
+            indices.push([3 * t + 1, 3 * t + 2, 3 * (t + 1)]);
+        }
         TriMesh::new(positions, indices).unwrap_or_default()
     }
 
-    fn brute_force(mesh: &TriMesh, ray: &Ray) -> Option<(f32, u32)> {
-        let mut best: Option<(f32, u32)> = None;
-        for t in 0..mesh.n_triangles() {
-            let t_max = best.map_or(f32::INFINITY, |b| b.0);
-            if let Some(h) = intersect_triangle(ray, mesh.triangle(t), t_max) {
-                best = Some((h.t, t as u32));
-            }
-        }
-        best
+    fn random_ray(rng: &mut Pcg32) -> Ray {
+        let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - 2.0;
+        let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
+        Ray::new(o, d)
     }
 
+    fn all_params() -> Vec<BuildParams> {
+        let mut params: Vec<BuildParams> = [BuildQuality::Fast, BuildQuality::Default, BuildQuality::High]
+            .map(BuildParams::for_quality)
+            .into();
+        params.push(BuildParams {
+            max_leaf_size: 1,
+            n_bins: 2,
+            traversal_cost: 0.0,
+            exact_below: 0,
+            prim_block: 1,
+        });
+        params
+    }
+
+    /// The tree's closest hit is the brute-force closest hit (same t, bit
+    /// for bit, and the same triangle unless two are hit at the same t), for
+    /// both triangle tests, every quality and a degenerate parameter set;
+    /// occlusion and the all-hits walk agree with it too.
     #[test]
     fn closest_hit_equals_brute_force_on_random_soups() {
-        for seed in 0..4 {
-            let mesh = random_soup(400, seed);
-            for params in [
-                BuildParams::default(),
-                BuildParams {
-                    max_leaf_size: 1,
-                    n_bins: 2,
-                    traversal_cost: 0.0,
-                },
-            ] {
-                let bvh = MeshBvh::build(&mesh, &params);
-                let mut rng = Pcg32::new(seed, 9);
-                for _ in 0..2000 {
-                    let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - 2.0;
-                    let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
-                    let ray = Ray::new(o, d);
-                    let expected = brute_force(&mesh, &ray);
-                    let got = bvh.intersect(&ray, f32::INFINITY).map(|h| (h.t, h.prim));
-                    assert_eq!(got.map(|g| g.0), expected.map(|e| e.0), "ray {ray:?}");
-                    assert_eq!(bvh.occluded(&ray, f32::INFINITY), expected.is_some());
-                    let mut n_hits = 0;
-                    bvh.for_each_hit(&ray, f32::INFINITY, |_| {
-                        n_hits += 1;
-                        false
-                    });
-                    let n_expected = (0..mesh.n_triangles())
-                        .filter(|&t| intersect_triangle(&ray, mesh.triangle(t), f32::INFINITY).is_some())
-                        .count();
-                    assert_eq!(n_hits, n_expected);
+        for seed in 0..3 {
+            let mesh = random_soup(300, seed);
+            for params in all_params() {
+                for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
+                    let bvh = MeshBvh::build(&mesh, &params).with_triangle_test(test);
+                    let mut rng = Pcg32::new(seed, 9);
+                    for i in 0..800 {
+                        let ray = random_ray(&mut rng);
+                        let t_max = if i % 5 == 0 { 6.0 } else { f32::INFINITY };
+                        let expected = bvh.intersect_brute_force(&ray, t_max);
+                        let got = bvh.intersect(&ray, t_max);
+                        assert_eq!(got.map(|g| g.t), expected.map(|e| e.t), "{test:?} {params:?} {ray:?}");
+                        if let (Some(g), Some(e)) = (got, expected) {
+                            let tri = mesh.triangle(g.prim as usize);
+                            let again = PreparedRay::new(&ray, test).intersect(tri, f32::INFINITY);
+                            assert!(again.is_some(), "the reported triangle is hit");
+                            assert_eq!(g.prim, e.prim, "{ray:?}");
+                        }
+                        assert_eq!(bvh.occluded(&ray, t_max), expected.is_some());
+                        let mut n_hits = 0;
+                        bvh.for_each_hit(&ray, t_max, |_| {
+                            n_hits += 1;
+                            false
+                        });
+                        let prepared = PreparedRay::new(&ray, test);
+                        let n_expected = (0..mesh.n_triangles())
+                            .filter(|&t| prepared.intersect(mesh.triangle(t), t_max).is_some())
+                            .count();
+                        assert_eq!(n_hits, n_expected);
+                    }
                 }
+            }
+        }
+    }
+
+    /// The brute-force reference itself: Moller-Trumbore through the tree
+    /// type equals the report's free function.
+    #[test]
+    fn brute_force_reference_matches_the_plain_function() {
+        let mesh = random_soup(100, 7);
+        let bvh = MeshBvh::build(&mesh, &BuildParams::default()).with_triangle_test(TriangleTest::MollerTrumbore);
+        let mut rng = Pcg32::new(7, 1);
+        for _ in 0..500 {
+            let ray = random_ray(&mut rng);
+            let mut best: Option<(f32, u32)> = None;
+            for t in 0..mesh.n_triangles() {
+                if let Some(h) = intersect_triangle(&ray, mesh.triangle(t), best.map_or(f32::INFINITY, |b| b.0)) {
+                    best = Some((h.t, t as u32));
+                }
+            }
+            let got = bvh.intersect_brute_force(&ray, f32::INFINITY);
+            assert_eq!(got.map(|h| h.prim), best.map(|b| b.1));
+            if let (Some(g), Some(b)) = (got, best) {
+                // The reported distance is the f64-refined one.
+                assert!((g.t - b.0).abs() <= 1e-2 * b.0.max(1.0), "{} {}", g.t, b.0);
+            }
+        }
+    }
+
+    /// The 4-wide tree holds every triangle once under boxes that contain
+    /// it, and its traversal finds what the binary tree's does.
+    #[test]
+    fn wide_tree_matches_the_binary_tree() {
+        let mesh = random_soup(500, 11);
+        for params in all_params() {
+            let boxes: Vec<Aabb> = (0..mesh.n_triangles())
+                .map(|t| Aabb::from_points(mesh.triangle(t)))
+                .collect();
+            let binary = Bvh::build(&boxes, &params);
+            let bvh = MeshBvh::build(&mesh, &params);
+            crate::wide::check(&bvh.wide, bvh.packs.len(), |p| {
+                (0..4)
+                    .filter(|&l| bvh.packs[p].prim[l] != u32::MAX)
+                    .fold(Aabb::EMPTY, |b, l| {
+                        b.union(Aabb::from_points(lane_triangle(&bvh.packs[p].v, l)))
+                    })
+            });
+            let mut ids: Vec<u32> = bvh
+                .packs
+                .iter()
+                .flat_map(|p| p.prim)
+                .filter(|&p| p != u32::MAX)
+                .collect();
+            ids.sort_unstable();
+            assert_eq!(
+                ids,
+                (0..mesh.n_triangles() as u32).collect::<Vec<_>>(),
+                "every triangle once"
+            );
+            let mut rng = Pcg32::new(3, 3);
+            for _ in 0..1000 {
+                let ray = random_ray(&mut rng);
+                let prepared = PreparedRay::new(&ray, TriangleTest::Watertight);
+                let mut reference = None;
+                binary.traverse_closest(&ray, f32::INFINITY, |p, t_max| {
+                    let h = prepared.intersect(mesh.triangle(p as usize), t_max)?;
+                    reference = Some(p);
+                    Some(h.t)
+                });
+                assert_eq!(bvh.intersect(&ray, f32::INFINITY).map(|h| h.prim), reference);
             }
         }
     }
@@ -176,10 +414,50 @@ mod tests {
         let ray = Ray::new(Vec3::ZERO, Vec3::X);
         assert!(empty.intersect(&ray, f32::INFINITY).is_none());
         assert!(!empty.occluded(&ray, f32::INFINITY));
+        assert!(!empty.for_each_hit(&ray, f32::INFINITY, |_| true));
         let sphere = MeshBvh::build(&shapes::icosphere(2), &BuildParams::default());
-        let nan = Ray::new(Vec3::splat(f32::NAN), Vec3::X);
-        assert!(sphere.intersect(&nan, f32::INFINITY).is_none());
-        let zero_dir = Ray::new(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO);
-        assert!(sphere.intersect(&zero_dir, f32::INFINITY).is_none());
+        let bad_rays = [
+            Ray::new(Vec3::splat(f32::NAN), Vec3::X),
+            Ray::new(Vec3::ZERO, Vec3::splat(f32::NAN)),
+            Ray::new(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO),
+            Ray::new(Vec3::new(0.0, 0.0, -3.0), Vec3::new(0.0, 0.0, f32::INFINITY)),
+            Ray::new(Vec3::splat(f32::INFINITY), Vec3::X),
+        ];
+        for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
+            let sphere = sphere.clone().with_triangle_test(test);
+            for ray in bad_rays {
+                assert!(sphere.intersect(&ray, f32::INFINITY).is_none(), "{ray:?}");
+                assert!(!sphere.occluded(&ray, f32::INFINITY), "{ray:?}");
+                assert!(sphere.intersect(&ray, f32::NAN).is_none(), "{ray:?}");
+            }
+        }
+        // A mesh of only degenerate triangles builds and is never hit.
+        let flat =
+            TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0)], vec![[0, 1, 2]; 5]).unwrap_or_default();
+        let flat = MeshBvh::build(&flat, &BuildParams::default());
+        assert!(
+            flat.intersect(&Ray::new(Vec3::new(0.5, 1.0, 0.0), -Vec3::Y), f32::INFINITY)
+                .is_none()
+        );
+    }
+
+    /// A closed mesh seen from inside: every ray hits (no cracks between
+    /// triangles), which the watertight test guarantees for rays through
+    /// shared vertices too.
+    #[test]
+    fn rays_through_vertices_of_a_closed_mesh_always_hit() {
+        let mesh = shapes::icosphere(3);
+        let bvh = MeshBvh::build(&mesh, &BuildParams::default());
+        let mut rng = Pcg32::new(5, 5);
+        for t in 0..mesh.n_triangles() {
+            for v in mesh.triangle(t) {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.5 - 0.25;
+                let ray = Ray::new(o, v - o);
+                assert!(
+                    bvh.intersect(&ray, f32::INFINITY).is_some(),
+                    "crack at {v:?} from {o:?}"
+                );
+            }
+        }
     }
 }

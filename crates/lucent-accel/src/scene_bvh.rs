@@ -93,6 +93,7 @@ impl SceneBvh {
             .collect();
         let top_params = BuildParams {
             max_leaf_size: 1,
+            prim_block: 1,
             ..*params
         };
         let tlas = Bvh::build(&boxes, &top_params);
@@ -204,13 +205,46 @@ mod tests {
         // A shorter ray stops before it.
         assert!(scene.intersect(&ray, 12.9).is_none());
         assert!(!scene.occluded(&ray, 12.9));
-        // All hits along the axis: two per sphere.
+        // All hits along a line next to the axis: two per sphere. (The axis
+        // itself passes through vertices of the icosphere, where the
+        // watertight test reports every triangle that touches the vertex.)
+        let ray = Ray::new(Vec3::new(20.0, 0.01, 0.003), -Vec3::X);
         let mut n = 0;
         scene.for_each_hit(&ray, f32::INFINITY, |_| {
             n += 1;
             false
         });
         assert_eq!(n, 6);
+    }
+
+    #[test]
+    fn nan_infinite_and_zero_rays_never_hit_or_panic() {
+        let sphere = Arc::new(MeshBvh::build(&shapes::icosphere(2), &BuildParams::default()));
+        let instances = vec![
+            Instance::new(Affine3A::IDENTITY, 0),
+            Instance::new(Affine3A::from_translation(Vec3::X * 3.0), 0),
+        ];
+        let scene = SceneBvh::build(
+            vec![sphere],
+            instances.into_iter().flatten().collect(),
+            &BuildParams::default(),
+        );
+        for ray in [
+            Ray::new(Vec3::splat(f32::NAN), Vec3::X),
+            Ray::new(Vec3::new(-5.0, 0.0, 0.0), Vec3::new(f32::NAN, 0.0, 0.0)),
+            Ray::new(Vec3::new(-5.0, 0.0, 0.0), Vec3::ZERO),
+            Ray::new(Vec3::new(-5.0, 0.0, 0.0), Vec3::new(f32::INFINITY, 0.0, 0.0)),
+            Ray::new(Vec3::splat(f32::NEG_INFINITY), Vec3::X),
+        ] {
+            assert!(scene.intersect(&ray, f32::INFINITY).is_none(), "{ray:?}");
+            assert!(!scene.occluded(&ray, f32::INFINITY), "{ray:?}");
+            assert!(!scene.for_each_hit(&ray, f32::INFINITY, |_| true), "{ray:?}");
+        }
+        // A NaN or negative t_max finds nothing either.
+        let ray = Ray::new(Vec3::new(-5.0, 0.01, 0.0), Vec3::X);
+        assert!(scene.intersect(&ray, f32::INFINITY).is_some());
+        assert!(scene.intersect(&ray, f32::NAN).is_none());
+        assert!(!scene.occluded(&ray, -1.0));
     }
 
     #[test]

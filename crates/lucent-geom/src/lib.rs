@@ -2,8 +2,9 @@
 //!
 //! This crate is the bottom of the dependency graph: rays ([`Ray`]), boxes
 //! ([`Aabb`]), indexed triangle meshes ([`TriMesh`]) and their procedural
-//! builders ([`shapes`]), the report's Moller-Trumbore ray-triangle test
-//! ([`intersect_triangle`]), the self-intersection-free origin offset for
+//! builders ([`shapes`]), ray-triangle tests (the watertight test of Woop,
+//! Benthin and Wald through [`PreparedRay`], the default, and the report's
+//! Moller-Trumbore test [`intersect_triangle`]; [`TriangleTest`] picks), the self-intersection-free origin offset for
 //! secondary rays ([`offset_ray_origin`]) and a small deterministic RNG
 //! ([`Pcg32`]).
 //!
@@ -32,4 +33,7 @@ pub use mesh::{MeshError, TriMesh};
 pub use offset::offset_ray_origin;
 pub use ray::Ray;
 pub use rng::{Pcg32, hash_u64};
-pub use triangle::{TriangleHit, intersect_triangle, triangle_normal};
+pub use triangle::{
+    PreparedRay, TriangleHit, TrianglePack4, TriangleTest, intersect_triangle, lane_triangle, plane_distance,
+    triangle_normal,
+};

@@ -1,4 +1,16 @@
-//! Ray-triangle intersection: the report's Moller-Trumbore test (S8).
+//! Ray-triangle intersection.
+//!
+//! Two tests, selectable with [`TriangleTest`]:
+//!
+//! * the watertight test of Woop, Benthin and Wald ("Watertight Ray/Triangle
+//!   Intersection", JCGT 2013), the default. The ray is turned into a shear
+//!   that maps it onto the +z axis, the triangle's vertices are moved into
+//!   that frame, and the hit is decided by the signs of three 2D edge
+//!   functions. Neighbouring triangles evaluate a shared edge with the same
+//!   operations on the same numbers, so a ray through an edge or vertex hits
+//!   at least one of them: no cracks. Edge functions that come out exactly 0
+//!   are recomputed in f64 so the sign is right.
+//! * the seed report's Moller-Trumbore test (S8), kept for comparison.
 
 use crate::Ray;
 use glam::Vec3;
@@ -46,6 +58,275 @@ pub fn intersect_triangle(ray: &Ray, [v0, v1, v2]: [Vec3; 3], t_max: f32) -> Opt
     }
     let t = e2.dot(q) * inv_det;
     (t > 0.0 && t < t_max).then_some(TriangleHit { t, u, v })
+}
+
+/// Which ray-triangle test a tracer uses.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum TriangleTest {
+    /// Woop, Benthin and Wald 2013: no cracks along shared edges (the default).
+    #[default]
+    Watertight,
+    /// Moller-Trumbore (the seed report's S8): faster setup, not watertight.
+    MollerTrumbore,
+}
+
+impl TriangleTest {
+    /// A short lowercase name (`watertight`, `moller-trumbore`).
+    pub fn name(self) -> &'static str {
+        match self {
+            TriangleTest::Watertight => "watertight",
+            TriangleTest::MollerTrumbore => "moller-trumbore",
+        }
+    }
+}
+
+/// A ray prepared for many triangle tests: the per-ray part of both tests
+/// (the watertight test's axis permutation and shear) computed once.
+///
+/// ```
+/// use lucent_geom::{PreparedRay, Ray, TriangleTest, Vec3};
+/// let ray = Ray::new(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z);
+/// let prepared = PreparedRay::new(&ray, TriangleTest::Watertight);
+/// let hit = prepared.intersect([Vec3::ZERO, Vec3::X, Vec3::Y], f32::INFINITY);
+/// assert_eq!(hit.map(|h| h.t), Some(1.0));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedRay {
+    /// The ray itself.
+    pub ray: Ray,
+    test: TriangleTest,
+    /// Axis permutation: the largest direction component becomes z.
+    k: [usize; 3],
+    /// Shear constants (Sx, Sy, Sz).
+    shear: [f32; 3],
+}
+
+impl PreparedRay {
+    /// Prepares `ray` for `test`. Any ray is accepted; one with a zero, NaN
+    /// or infinite direction simply never hits.
+    #[inline]
+    pub fn new(ray: &Ray, test: TriangleTest) -> Self {
+        let a = ray.dir.abs();
+        // Largest component; NaN compares false and leaves z.
+        let kz = if a.x > a.y && a.x > a.z {
+            0
+        } else if a.y > a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding: swap x and y when the ray goes down the axis.
+        if ray.dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let dz = ray.dir[kz];
+        Self {
+            ray: *ray,
+            test,
+            k: [kx, ky, kz],
+            shear: [ray.dir[kx] / dz, ray.dir[ky] / dz, 1.0 / dz],
+        }
+    }
+
+    /// The test this ray was prepared for.
+    pub fn test(&self) -> TriangleTest {
+        self.test
+    }
+
+    /// Hit with `0 < t < t_max`, both faces, by the prepared test.
+    #[inline]
+    pub fn intersect(&self, tri: [Vec3; 3], t_max: f32) -> Option<TriangleHit> {
+        match self.test {
+            TriangleTest::Watertight => self.intersect_watertight(tri, t_max),
+            TriangleTest::MollerTrumbore => intersect_triangle(&self.ray, tri, t_max),
+        }
+    }
+
+    /// The watertight test, whatever this ray was prepared for.
+    #[inline]
+    pub fn intersect_watertight(&self, [v0, v1, v2]: [Vec3; 3], t_max: f32) -> Option<TriangleHit> {
+        let [kx, ky, kz] = self.k;
+        let [sx, sy, sz] = self.shear;
+        let o = self.ray.origin;
+        let a = v0 - o;
+        let b = v1 - o;
+        let c = v2 - o;
+        // Vertices in the sheared frame where the ray is the +z axis.
+        let (ax, ay) = (a[kx] - sx * a[kz], a[ky] - sy * a[kz]);
+        let (bx, by) = (b[kx] - sx * b[kz], b[ky] - sy * b[kz]);
+        let (cx, cy) = (c[kx] - sx * c[kz], c[ky] - sy * c[kz]);
+        // Scaled barycentrics: 2D edge functions of the origin.
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            // On an edge in f32: decide the sign exactly enough in f64
+            // (products of two f32 are exact in f64).
+            let f = |p: f32, q: f32, r: f32, s: f32| (f64::from(p) * f64::from(q) - f64::from(r) * f64::from(s)) as f32;
+            u = f(cx, by, cy, bx);
+            v = f(ax, cy, ay, cx);
+            w = f(bx, ay, by, ax);
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        // Zero: edge-on or degenerate. NaN fails the tests below.
+        if det == 0.0 {
+            return None;
+        }
+        let (az, bz, cz) = (sz * a[kz], sz * b[kz], sz * c[kz]);
+        let t_scaled = u * az + v * bz + w * cz;
+        let inv_det = 1.0 / det;
+        let t = t_scaled * inv_det;
+        if !(t > 0.0 && t < t_max && inv_det.is_finite()) {
+            return None;
+        }
+        Some(TriangleHit {
+            t,
+            u: v * inv_det,
+            v: w * inv_det,
+        })
+    }
+}
+
+/// Four triangles in structure-of-arrays form, `v[vertex][axis][lane]`, for
+/// [`PreparedRay::intersect4`]. Unused lanes hold NaN vertices, which never
+/// hit.
+pub type TrianglePack4 = [[[f32; 4]; 3]; 3];
+
+impl PreparedRay {
+    /// The four triangles of `pack`, each tested as by
+    /// [`PreparedRay::intersect`] with `0 < t < t_max`, with identical
+    /// results: the watertight test runs on four lanes at once (plain lane
+    /// loops that the compiler turns into vector instructions), its rare f64
+    /// fallback lane by lane.
+    ///
+    /// ```
+    /// use lucent_geom::{PreparedRay, Ray, TriangleTest, Vec3};
+    /// let nan = f32::NAN;
+    /// // Lane 0: the unit right triangle in z = 0; lanes 1-3 unused.
+    /// let pack = [
+    ///     [[0.0, nan, nan, nan], [0.0, nan, nan, nan], [0.0, nan, nan, nan]],
+    ///     [[1.0, nan, nan, nan], [0.0, nan, nan, nan], [0.0, nan, nan, nan]],
+    ///     [[0.0, nan, nan, nan], [1.0, nan, nan, nan], [0.0, nan, nan, nan]],
+    /// ];
+    /// let ray = PreparedRay::new(&Ray::new(Vec3::new(0.25, 0.25, 2.0), -Vec3::Z), TriangleTest::Watertight);
+    /// let hits = ray.intersect4(&pack, f32::INFINITY);
+    /// assert_eq!(hits[0].map(|h| h.t), Some(2.0));
+    /// assert!(hits[1..].iter().all(Option::is_none));
+    /// ```
+    #[inline(always)]
+    pub fn intersect4(&self, pack: &TrianglePack4, t_max: f32) -> [Option<TriangleHit>; 4] {
+        if self.test == TriangleTest::MollerTrumbore {
+            return self.intersect4_moller_trumbore(pack, t_max);
+        }
+        let [kx, ky, kz] = self.k;
+        let [sx, sy, sz] = self.shear;
+        let o = self.ray.origin;
+        let (ox, oy, oz) = (o[kx], o[ky], o[kz]);
+        // Sheared vertex coordinates per lane, as in intersect_watertight.
+        let mut x = [[0.0f32; 4]; 3];
+        let mut y = [[0.0f32; 4]; 3];
+        let mut z = [[0.0f32; 4]; 3];
+        for vtx in 0..3 {
+            let (px, py, pz) = (&pack[vtx][kx], &pack[vtx][ky], &pack[vtx][kz]);
+            for l in 0..4 {
+                let (dx, dy, dz) = (px[l] - ox, py[l] - oy, pz[l] - oz);
+                x[vtx][l] = dx - sx * dz;
+                y[vtx][l] = dy - sy * dz;
+                z[vtx][l] = dz;
+            }
+        }
+        let [ax, bx, cx] = x;
+        let [ay, by, cy] = y;
+        let mut u = [0.0f32; 4];
+        let mut v = [0.0f32; 4];
+        let mut w = [0.0f32; 4];
+        let mut on_edge = false;
+        for l in 0..4 {
+            u[l] = cx[l] * by[l] - cy[l] * bx[l];
+            v[l] = ax[l] * cy[l] - ay[l] * cx[l];
+            w[l] = bx[l] * ay[l] - by[l] * ax[l];
+            on_edge |= (u[l] == 0.0) | (v[l] == 0.0) | (w[l] == 0.0);
+        }
+        if on_edge {
+            let f = |p: f32, q: f32, r: f32, s: f32| (f64::from(p) * f64::from(q) - f64::from(r) * f64::from(s)) as f32;
+            for l in 0..4 {
+                if u[l] == 0.0 || v[l] == 0.0 || w[l] == 0.0 {
+                    u[l] = f(cx[l], by[l], cy[l], bx[l]);
+                    v[l] = f(ax[l], cy[l], ay[l], cx[l]);
+                    w[l] = f(bx[l], ay[l], by[l], ax[l]);
+                }
+            }
+        }
+        // All four lanes at once, with non-short-circuit `&`/`|` so that the
+        // decision vectorises too; then one branch per lane.
+        let mut ok = [false; 4];
+        let mut t = [0.0f32; 4];
+        let mut inv_det = [0.0f32; 4];
+        for l in 0..4 {
+            let (ul, vl, wl) = (u[l], v[l], w[l]);
+            let mixed = ((ul < 0.0) | (vl < 0.0) | (wl < 0.0)) & ((ul > 0.0) | (vl > 0.0) | (wl > 0.0));
+            let det = ul + vl + wl;
+            let t_scaled = ul * (sz * z[0][l]) + vl * (sz * z[1][l]) + wl * (sz * z[2][l]);
+            inv_det[l] = 1.0 / det;
+            t[l] = t_scaled * inv_det[l];
+            ok[l] = !mixed & (det != 0.0) & (t[l] > 0.0) & (t[l] < t_max) & (inv_det[l].abs() < f32::INFINITY);
+        }
+        let mut out = [None; 4];
+        for l in 0..4 {
+            if ok[l] {
+                out[l] = Some(TriangleHit {
+                    t: t[l],
+                    u: v[l] * inv_det[l],
+                    v: w[l] * inv_det[l],
+                });
+            }
+        }
+        out
+    }
+}
+
+impl PreparedRay {
+    /// [`PreparedRay::intersect4`] for Moller-Trumbore: lane by lane, kept
+    /// out of line so the watertight path inlines into traversal loops.
+    #[inline(never)]
+    fn intersect4_moller_trumbore(&self, pack: &TrianglePack4, t_max: f32) -> [Option<TriangleHit>; 4] {
+        [0, 1, 2, 3].map(|l| intersect_triangle(&self.ray, lane_triangle(pack, l), t_max))
+    }
+}
+
+/// Triangle `lane` of a pack.
+#[inline]
+pub fn lane_triangle(pack: &TrianglePack4, lane: usize) -> [Vec3; 3] {
+    let l = lane & 3;
+    [0, 1, 2].map(|vtx| Vec3::new(pack[vtx][0][l], pack[vtx][1][l], pack[vtx][2][l]))
+}
+
+/// The distance along `ray` to the plane of `tri`, computed in f64 from the
+/// f32 inputs and rounded once: nearly exact, however grazing the ray.
+///
+/// The f32 tests decide *whether* and *which* triangle is hit; a tracer
+/// calls this once per ray for the final hit, whose f32 distance can be off
+/// by many ulps when the ray meets the plane at a grazing angle. Returns
+/// `None` when the ray is parallel to the plane or the triangle is
+/// degenerate.
+///
+/// ```
+/// use lucent_geom::{plane_distance, Ray, Vec3};
+/// let ray = Ray::new(Vec3::new(0.2, 0.2, 3.0), -Vec3::Z);
+/// assert_eq!(plane_distance(&ray, [Vec3::ZERO, Vec3::X, Vec3::Y]), Some(3.0));
+/// ```
+#[inline]
+pub fn plane_distance(ray: &Ray, [v0, v1, v2]: [Vec3; 3]) -> Option<f32> {
+    let [a, b, c] = [v0, v1, v2].map(|v| v.as_dvec3());
+    let n = (b - a).cross(c - a);
+    let t = n.dot(a - ray.origin.as_dvec3()) / n.dot(ray.dir.as_dvec3());
+    let t = t as f32;
+    t.is_finite().then_some(t)
 }
 
 /// The geometric normal `(v1 - v0) x (v2 - v0)`, not normalised (its length
@@ -99,6 +380,178 @@ mod tests {
         assert!(intersect_triangle(&ray, inf, f32::INFINITY).is_none());
         let nan_ray = Ray::new(Vec3::splat(f32::NAN), -Vec3::Z);
         assert!(intersect_triangle(&nan_ray, TRI, f32::INFINITY).is_none());
+    }
+
+    fn both_tests(ray: &Ray, tri: [Vec3; 3], t_max: f32) -> [Option<TriangleHit>; 2] {
+        [TriangleTest::Watertight, TriangleTest::MollerTrumbore].map(|t| PreparedRay::new(ray, t).intersect(tri, t_max))
+    }
+
+    #[test]
+    fn watertight_hits_inside_with_barycentrics_and_misses_outside() {
+        for (origin, dir) in [
+            ([0.25, 0.5, 2.0], [0.0, 0.0, -1.0]),
+            ([0.25, 0.5, -2.0], [0.0, 0.0, 1.0]),
+        ] {
+            let ray = Ray::new(Vec3::from(origin), Vec3::from(dir));
+            let hit = PreparedRay::new(&ray, TriangleTest::Watertight).intersect(TRI, f32::INFINITY);
+            assert_eq!(
+                hit,
+                Some(TriangleHit {
+                    t: 2.0,
+                    u: 0.25,
+                    v: 0.5
+                })
+            );
+        }
+        let cases = [
+            ([0.8, 0.8, 1.0], [0.0, 0.0, -1.0], f32::INFINITY),
+            ([0.2, 0.2, 1.0], [0.0, 0.0, 1.0], f32::INFINITY),
+            ([0.2, 0.2, 1.0], [0.0, 0.0, -1.0], 1.0),
+            ([0.2, 0.2, 0.0], [1.0, 0.0, 0.0], f32::INFINITY),
+        ];
+        for (origin, dir, t_max) in cases {
+            let ray = Ray::new(Vec3::from(origin), Vec3::from(dir));
+            assert_eq!(both_tests(&ray, TRI, t_max), [None, None], "{ray:?}");
+        }
+    }
+
+    #[test]
+    fn watertight_degenerate_and_non_finite_input_never_hits() {
+        let ray = Ray::new(Vec3::new(0.1, 0.1, 1.0), -Vec3::Z);
+        for tri in [
+            [Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0)],
+            [Vec3::ONE; 3],
+            [Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 1.0, 0.0)],
+            [Vec3::ZERO, Vec3::X, Vec3::new(0.0, f32::INFINITY, 0.0)],
+        ] {
+            assert_eq!(both_tests(&ray, tri, f32::INFINITY), [None, None], "{tri:?}");
+        }
+        for bad in [
+            Ray::new(Vec3::splat(f32::NAN), -Vec3::Z),
+            Ray::new(Vec3::new(0.1, 0.1, 1.0), Vec3::ZERO),
+            Ray::new(Vec3::new(0.1, 0.1, 1.0), Vec3::new(0.0, 0.0, f32::NAN)),
+            Ray::new(Vec3::new(0.1, 0.1, 1.0), Vec3::new(0.0, f32::INFINITY, -1.0)),
+        ] {
+            assert_eq!(both_tests(&bad, TRI, f32::INFINITY), [None, None], "{bad:?}");
+        }
+    }
+
+    /// A ray aimed exactly at a shared edge or vertex of a triangle fan must
+    /// hit at least one triangle of the fan: the watertight property.
+    #[test]
+    fn watertight_test_leaves_no_crack_between_neighbours() {
+        let mut rng = crate::Pcg32::new(7, 1);
+        let mut rnd = || rng.next_f32();
+        for _ in 0..200 {
+            // A fan of 6 triangles around a random centre, with random rims.
+            let c = Vec3::new(rnd(), rnd(), rnd()) * 3.0 - 1.0;
+            let rim: Vec<Vec3> = (0..6)
+                .map(|k| {
+                    let a = k as f32 * std::f32::consts::TAU / 6.0;
+                    c + Vec3::new(a.cos(), a.sin(), 0.3 * (rnd() - 0.5)) * (0.5 + rnd())
+                })
+                .collect();
+            let tris: Vec<[Vec3; 3]> = (0..6).map(|k| [c, rim[k], rim[(k + 1) % 6]]).collect();
+            for r in &rim {
+                // The shared vertex, and points on shared edges.
+                for target in [c, c + (*r - c) * rnd(), c + (*r - c) * 0.5] {
+                    let origin = target + Vec3::new(rnd() - 0.5, rnd() - 0.5, 2.0 + rnd()) * 4.0;
+                    let ray = Ray::new(origin, target - origin);
+                    let prepared = PreparedRay::new(&ray, TriangleTest::Watertight);
+                    let hits = tris.iter().filter(|&&t| prepared.intersect(t, f32::INFINITY).is_some());
+                    assert!(hits.count() >= 1, "crack at {target:?} from {origin:?}");
+                }
+            }
+        }
+    }
+
+    /// Away from edges both tests agree on t and the barycentrics.
+    #[test]
+    fn watertight_and_moller_trumbore_agree_inside_triangles() {
+        let mut rng = crate::Pcg32::new(3, 5);
+        let mut p = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        let mut agreed = 0;
+        for _ in 0..5000 {
+            let tri = [p(), p(), p()];
+            // Aim near the triangle so about half the rays hit.
+            let target = (tri[0] + tri[1] + tri[2]) / 3.0 + p() * 0.3;
+            let origin = p() * 5.0;
+            let ray = Ray::new(origin, target - origin);
+            let [wt, mt] = both_tests(&ray, tri, f32::INFINITY);
+            match (wt, mt) {
+                (Some(a), Some(b)) => {
+                    assert!((a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1.0), "{a:?} {b:?}");
+                    assert!((a.u - b.u).abs() < 1e-3 && (a.v - b.v).abs() < 1e-3, "{a:?} {b:?}");
+                    agreed += 1;
+                }
+                (None, None) => {}
+                (Some(h), None) | (None, Some(h)) => {
+                    // Only grazing hits may differ.
+                    let w = 1.0 - h.u - h.v;
+                    assert!(h.u.min(h.v).min(w) < 1e-4, "{ray:?} {tri:?} {h:?}");
+                }
+            }
+        }
+        assert!(agreed > 100, "too few hits to compare: {agreed}");
+    }
+
+    /// The four-lane kernel gives bit-identical answers to the scalar test,
+    /// for both tests, on random triangles, triangles sharing edges and
+    /// vertices (where the f64 fallback runs), degenerate and NaN lanes.
+    #[test]
+    fn four_lane_kernel_equals_the_scalar_test() {
+        let mut rng = crate::Pcg32::new(11, 2);
+        let mut p = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        let mut hits = 0;
+        for i in 0..4000 {
+            let shared = p();
+            let mut tris = [[p(), p(), p()], [shared, p(), p()], [shared, p(), p()], [p(), p(), p()]];
+            match i % 4 {
+                1 => tris[3] = [shared, shared, p()],
+                2 => tris[0][1] = Vec3::new(f32::NAN, 0.0, 0.0),
+                _ => {}
+            }
+            let mut pack = [[[0.0f32; 4]; 3]; 3];
+            for (l, tri) in tris.iter().enumerate() {
+                for vtx in 0..3 {
+                    for axis in 0..3 {
+                        pack[vtx][axis][l] = tri[vtx][axis];
+                    }
+                }
+            }
+            // Half the rays aim exactly at the shared vertex.
+            let origin = p() * 4.0;
+            let target = if i % 2 == 0 { shared } else { p() * 0.5 };
+            let ray = Ray::new(origin, target - origin);
+            for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
+                let prepared = PreparedRay::new(&ray, test);
+                let t_max = if i % 3 == 0 { 2.0 } else { f32::INFINITY };
+                let lanes = prepared.intersect4(&pack, t_max);
+                for (l, tri) in tris.iter().enumerate() {
+                    assert_eq!(lanes[l], prepared.intersect(*tri, t_max), "lane {l} {ray:?} {tris:?}");
+                    assert_eq!(lane_triangle(&pack, l)[2], tri[2]);
+                    hits += usize::from(lanes[l].is_some());
+                }
+            }
+        }
+        assert!(hits > 1000, "too few hits to compare: {hits}");
+    }
+
+    #[test]
+    fn plane_distance_is_exact_where_f32_tests_round() {
+        // A ray grazing a triangle at about 1e-3 rad: the f32 tests round t
+        // visibly, the f64 plane distance does not.
+        let tri = [
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        ];
+        let ray = Ray::new(Vec3::new(0.0, 0.00123, -7.0), Vec3::new(0.0, -0.00017, 1.0));
+        let exact = 0.00123f64 / 0.00017f32 as f64;
+        let t = plane_distance(&ray, tri).unwrap_or(0.0);
+        assert!((t as f64 - exact).abs() / exact < 1e-7, "{t} vs {exact}");
+        assert_eq!(plane_distance(&Ray::new(Vec3::Y, Vec3::X), tri), None);
+        assert_eq!(plane_distance(&Ray::new(Vec3::Y, -Vec3::Y), [Vec3::ZERO; 3]), None);
     }
 
     #[test]

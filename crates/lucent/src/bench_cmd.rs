@@ -25,6 +25,8 @@ enum BenchCommand {
     Render(RenderBenchArgs),
     /// Time mesh loading: MB/s, triangles/s and peak memory per file.
     Load(crate::bench_load::LoadBenchArgs),
+    /// Time the traversal core alone on a ray file (the Embree peer's formats).
+    Rays(crate::bench_rays::RaysBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -48,6 +50,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
         BenchCommand::Render(a) => bench_render(a),
         BenchCommand::Load(a) => crate::bench_load::run(a),
+        BenchCommand::Rays(a) => crate::bench_rays::run(a),
     }
 }
 
