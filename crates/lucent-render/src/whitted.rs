@@ -11,11 +11,13 @@
 //!   (Gouraud); a diffuse texture and vertex colours tint Ka and Kd.
 //! - `shadow` comes from one shadow ray per light: an opaque blocker stops
 //!   it, each crossing of a translucent surface multiplies it by that
-//!   surface's `kt` (so a closed translucent shell attenuates twice), a clear
-//!   one lets everything through. Surfaces facing away from a light get no
-//!   direct light from it and need no shadow ray. With the report's
-//!   `shadowed_ambient` the ambient term is darkened too (by the mean shadow
-//!   factor over lights), which makes opaque shadows black.
+//!   surface's `kt` (so a closed translucent shell attenuates twice, and a
+//!   ray through an edge or vertex that several triangles share crosses the
+//!   surface once there), a clear one lets everything through. Surfaces
+//!   facing away from a light get no direct light from it and need no
+//!   shadow ray. With the report's `shadowed_ambient` the ambient term is
+//!   darkened too (by the mean shadow factor over lights), which makes
+//!   opaque shadows black.
 //! - Reflected and refracted rays recurse until `max_depth`, or until the
 //!   ray's weight (the product of `kr`/`kt` along its path) falls under
 //!   `min_weight` (S11). Refraction follows Snell's law with the material's
@@ -209,7 +211,11 @@ impl<'a> Whitted<'a> {
             };
         }
         let mut transmittance = Vec3::ONE;
+        let mut crossings = Crossings::default();
         bvh.for_each_hit(&ray, ls.distance, |hit| {
+            if !crossings.first_time(hit.instance, hit.t) {
+                return false;
+            }
             let kt = self
                 .scene
                 .instances
@@ -270,6 +276,42 @@ where
     T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
 {
     a * bary.x + b * bary.y + c * bary.z
+}
+
+/// Two hits of one instance closer than this (relative to their distance)
+/// are one crossing of its surface. Hit distances are within about 1e-7
+/// (relative) of exact, so this is ten times that error, and far below the
+/// gap between two surfaces anyone models.
+const SAME_CROSSING: f32 = 1e-6;
+
+/// The last few surface crossings of one shadow ray. The watertight triangle
+/// test reports every triangle a ray meets, so a ray through an edge or a
+/// vertex that several triangles of a mesh share meets that surface several
+/// times at one distance; it crosses it once, and `kt` applies once. Hits
+/// come in traversal order, not by distance, so a small ring of recent hits
+/// is kept (on the stack: no allocation per ray); the triangles around one
+/// edge or vertex sit in the same or neighbouring leaves.
+#[derive(Default)]
+struct Crossings {
+    seen: [(u32, f32); 8],
+    count: usize,
+}
+
+impl Crossings {
+    /// Records a hit; false when it repeats a recorded crossing.
+    fn first_time(&mut self, instance: u32, t: f32) -> bool {
+        let recorded = &self.seen[..self.count.min(self.seen.len())];
+        if recorded
+            .iter()
+            .any(|&(i, s)| i == instance && (s - t).abs() <= SAME_CROSSING * s.max(t))
+        {
+            return false;
+        }
+        let slot = self.count % self.seen.len();
+        self.seen[slot] = (instance, t);
+        self.count += 1;
+        true
+    }
 }
 
 /// The hit point lifted from the flat triangle onto the smooth surface its

@@ -434,3 +434,45 @@ fn same_bytes_on_one_and_many_threads() {
     assert_eq!(one, run(3));
     assert_eq!(one, run(4));
 }
+
+#[test]
+fn shadow_rays_through_a_shared_edge_attenuate_once() {
+    // The box's top face is split along x = z; a vertical shadow ray from
+    // (0.4, 0, 0.4) meets that diagonal exactly, where the watertight test
+    // reports both triangles. It still crosses the box once on the way in
+    // and once on the way out: kt twice, not three times.
+    let glass = Material {
+        kt: Vec3::splat(0.5),
+        ..matte(0.8)
+    };
+    let scene = floor_and_box(glass);
+    let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let settings = RenderSettings::default();
+    let whitted = Whitted::new(&rs, &settings);
+    let at = |x: f32, z: f32| {
+        let p = Vec3::new(x, 0.0, z);
+        let surf = Surface {
+            p,
+            ng: Vec3::Y,
+            ns: Vec3::Y,
+            front: true,
+            bary: Vec3::new(1.0, 0.0, 0.0),
+            corners: [p; 3],
+            corner_normals: None,
+            uv: None,
+            color: None,
+            material: 0,
+        };
+        let ls = LightSample {
+            to_light: Vec3::Y,
+            distance: f32::INFINITY,
+            intensity: Vec3::ONE,
+        };
+        whitted.shadow(&surf, &ls, &mut RayStats::default())
+    };
+    // Off the diagonals, then on the top face's diagonal (x = z), on the
+    // bottom face's (x = -z) and on both at the centre.
+    for (x, z) in [(0.4, 0.1), (0.4, 0.4), (0.4, -0.4), (0.0, 0.0), (-0.7, -0.7)] {
+        assert_eq!(at(x, z), Vec3::splat(0.25), "shadow ray at x = {x}, z = {z}");
+    }
+}
