@@ -302,6 +302,48 @@ mod tests {
     /// for bit, and the same triangle unless two are hit at the same t), for
     /// both triangle tests, every quality and a degenerate parameter set;
     /// occlusion and the all-hits walk agree with it too.
+    /// The same mesh gives the same tree and packs, bit for bit, built on
+    /// one thread or on several (the parallel build must not depend on how
+    /// rayon splits the work).
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn build_does_not_depend_on_the_thread_count() {
+        // Well above the parallel threshold (subtrees of 4096 primitives),
+        // with a soup's mixed triangle sizes.
+        let mut positions = shapes::icosphere(5).positions().to_vec();
+        let soup = random_soup(30_000, 11);
+        let offset = positions.len() as u32;
+        positions.extend_from_slice(soup.positions());
+        let mut indices = shapes::icosphere(5).indices().to_vec();
+        indices.extend(soup.indices().iter().map(|t| t.map(|i| i + offset)));
+        let mesh = TriMesh::new(positions, indices).unwrap_or_default();
+        assert!(mesh.n_triangles() > 50_000);
+        let build = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("thread pool: {e}"));
+            pool.install(|| MeshBvh::build(&mesh, &BuildParams::default()))
+        };
+        let bits = |b: &MeshBvh| -> Vec<u32> {
+            b.packs
+                .iter()
+                .flat_map(|p| {
+                    p.v.as_flattened()
+                        .as_flattened()
+                        .iter()
+                        .map(|x| x.to_bits())
+                        .chain(p.prim)
+                })
+                .collect()
+        };
+        let one = build(1);
+        for threads in [2, 3] {
+            let many = build(threads);
+            assert!(one.wide == many.wide, "{threads} threads: another tree");
+            assert!(bits(&one) == bits(&many), "{threads} threads: other packs");
+            assert_eq!(one.stats(), many.stats());
+        }
+    }
+
     #[test]
     fn closest_hit_equals_brute_force_on_random_soups() {
         for seed in 0..3 {

@@ -55,7 +55,7 @@ const EMPTY_NODE: WideNode = WideNode {
 
 /// A 4-wide tree over primitive slots (positions in the binary tree's
 /// primitive order); leaves are `[first slot, count]`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct WideBvh {
     nodes: Vec<WideNode>,
     leaves: Vec<[u32; 2]>,
