@@ -42,7 +42,7 @@ mod wide;
 
 pub use build::{BuildParams, BuildQuality};
 pub use bvh::{Bvh, BvhNode, BvhStats, MAX_DEPTH};
-pub use mesh_bvh::{MeshBvh, MeshHit};
+pub use mesh_bvh::{MeshBvh, MeshHit, TraversalCounts};
 pub use scene_bvh::{Instance, SceneBvh, SceneHit};
 
 use lucent_geom::{Aabb, TriMesh};

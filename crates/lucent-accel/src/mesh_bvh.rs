@@ -1,6 +1,6 @@
 //! A BVH over one triangle mesh (the bottom level).
 
-use crate::wide::{Visit, WideBvh};
+use crate::wide::{Tally, Visit, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{PreparedRay, Ray, TrianglePack4, TriangleTest, lane_triangle, plane_distance};
 
@@ -16,6 +16,37 @@ pub struct MeshHit {
     pub v: f32,
     /// Triangle index in the source mesh.
     pub prim: u32,
+}
+
+/// Work done by traversal queries, summed over the queries it was passed to
+/// ([`MeshBvh::intersect_counted`], [`MeshBvh::occluded_counted`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalCounts {
+    /// Queries counted.
+    pub rays: u64,
+    /// 4-wide nodes whose children's boxes were tested.
+    pub nodes: u64,
+    /// Packs of four triangles tested.
+    pub packs: u64,
+}
+
+impl TraversalCounts {
+    /// Mean nodes and packs per query, `[0, 0]` before any.
+    pub fn per_ray(&self) -> [f64; 2] {
+        let n = self.rays.max(1) as f64;
+        [self.nodes as f64 / n, self.packs as f64 / n]
+    }
+}
+
+impl Tally for TraversalCounts {
+    #[inline(always)]
+    fn node(&mut self) {
+        self.nodes += 1;
+    }
+    #[inline(always)]
+    fn slot(&mut self) {
+        self.packs += 1;
+    }
 }
 
 /// Four triangles of a leaf in SoA form with their ids (`u32::MAX` marks an
@@ -149,6 +180,34 @@ impl MeshBvh {
     /// its distance is then recomputed in f64 ([`plane_distance`]), so `t` is
     /// nearly exact even for grazing rays.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<MeshHit> {
+        self.intersect_tallied(ray, t_max, &mut ())
+    }
+
+    /// [`MeshBvh::intersect`], adding the work it did to `counts`: a
+    /// diagnostic of tree quality (a little slower than `intersect`).
+    ///
+    /// ```
+    /// use lucent_accel::{BuildParams, MeshBvh, TraversalCounts};
+    /// use lucent_geom::{shapes, Ray, Vec3};
+    /// let bvh = MeshBvh::build(&shapes::icosphere(3), &BuildParams::default());
+    /// let ray = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
+    /// let mut counts = TraversalCounts::default();
+    /// assert_eq!(bvh.intersect_counted(&ray, f32::INFINITY, &mut counts), bvh.intersect(&ray, f32::INFINITY));
+    /// assert!(counts.nodes >= 1 && counts.packs >= 1);
+    /// ```
+    pub fn intersect_counted(&self, ray: &Ray, t_max: f32, counts: &mut TraversalCounts) -> Option<MeshHit> {
+        counts.rays += 1;
+        self.intersect_tallied(ray, t_max, counts)
+    }
+
+    /// [`MeshBvh::occluded`], adding the work it did to `counts`.
+    pub fn occluded_counted(&self, ray: &Ray, t_max: f32, counts: &mut TraversalCounts) -> bool {
+        counts.rays += 1;
+        self.occluded_tallied(ray, t_max, counts)
+    }
+
+    #[inline(always)]
+    fn intersect_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> Option<MeshHit> {
         // The walk reads the caller's ray, not the prepared copy: reading
         // the copy's fields back as wider loads right after they were
         // stored one by one stalls store-to-load forwarding.
@@ -161,7 +220,7 @@ impl MeshBvh {
             }
             None => Visit::Miss,
         };
-        self.wide.traverse::<true, _>(ray, t_max, visit);
+        self.wide.traverse::<true, _, _>(ray, t_max, visit, tally);
         best.map(|(slot, hit)| self.refine(ray, slot, hit, t_max))
     }
 
@@ -181,12 +240,17 @@ impl MeshBvh {
 
     /// Whether anything is hit with `0 < t < t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        self.occluded_tallied(ray, t_max, &mut ())
+    }
+
+    #[inline(always)]
+    fn occluded_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> bool {
         let prepared = PreparedRay::new(ray, self.test);
         let found = |idx: usize, _| match self.packs.get(idx) {
             Some(p) if prepared.intersect4(&p.v, t_max).iter().any(Option::is_some) => Visit::Stop,
             _ => Visit::Miss,
         };
-        self.wide.traverse::<false, _>(ray, t_max, found).1
+        self.wide.traverse::<false, _, _>(ray, t_max, found, tally).1
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
@@ -212,7 +276,7 @@ impl MeshBvh {
             }
             Visit::Miss
         };
-        self.wide.traverse::<false, _>(ray, t_max, each).1
+        self.wide.traverse::<false, _, _>(ray, t_max, each, &mut ()).1
     }
 
     /// The closest hit found by testing every triangle one at a time with
@@ -302,6 +366,85 @@ mod tests {
     /// for bit, and the same triangle unless two are hit at the same t), for
     /// both triangle tests, every quality and a degenerate parameter set;
     /// occlusion and the all-hits walk agree with it too.
+    /// The same mesh gives the same tree and packs, bit for bit, built on
+    /// one thread or on several (the parallel build must not depend on how
+    /// rayon splits the work).
+    #[cfg(feature = "parallel")]
+    /// The counted queries answer as the plain ones do, count nothing for
+    /// rays that miss the mesh's box and at least one node and pack for a
+    /// hit.
+    #[test]
+    fn counted_queries_match_and_count() {
+        let mesh = random_soup(2000, 5);
+        let bvh = MeshBvh::build(&mesh, &BuildParams::default());
+        let mut rng = Pcg32::new(9, 1);
+        let (mut closest, mut any) = (TraversalCounts::default(), TraversalCounts::default());
+        for _ in 0..2000 {
+            let ray = random_ray(&mut rng);
+            let before = closest;
+            let hit = bvh.intersect_counted(&ray, f32::INFINITY, &mut closest);
+            assert_eq!(hit, bvh.intersect(&ray, f32::INFINITY));
+            if hit.is_some() {
+                assert!(closest.nodes > before.nodes && closest.packs > before.packs);
+            }
+            let occluded = bvh.occluded_counted(&ray, f32::INFINITY, &mut any);
+            assert_eq!(occluded, bvh.occluded(&ray, f32::INFINITY));
+            assert_eq!(occluded, hit.is_some());
+        }
+        assert_eq!((closest.rays, any.rays), (2000, 2000));
+        assert!(any.nodes > 0 && any.packs > 0, "{any:?}");
+        let far = Ray::new(Vec3::splat(1e6), Vec3::ONE);
+        let mut none = TraversalCounts::default();
+        assert_eq!(bvh.intersect_counted(&far, f32::INFINITY, &mut none), None);
+        assert_eq!(
+            none,
+            TraversalCounts {
+                rays: 1,
+                nodes: 0,
+                packs: 0
+            }
+        );
+        assert_eq!(TraversalCounts::default().per_ray(), [0.0, 0.0]);
+    }
+
+    #[test]
+    fn build_does_not_depend_on_the_thread_count() {
+        // Well above the parallel threshold (subtrees of 4096 primitives),
+        // with a soup's mixed triangle sizes.
+        let mut positions = shapes::icosphere(5).positions().to_vec();
+        let soup = random_soup(30_000, 11);
+        let offset = positions.len() as u32;
+        positions.extend_from_slice(soup.positions());
+        let mut indices = shapes::icosphere(5).indices().to_vec();
+        indices.extend(soup.indices().iter().map(|t| t.map(|i| i + offset)));
+        let mesh = TriMesh::new(positions, indices).unwrap_or_default();
+        assert!(mesh.n_triangles() > 50_000);
+        let build = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            let pool = pool.unwrap_or_else(|e| panic!("thread pool: {e}"));
+            pool.install(|| MeshBvh::build(&mesh, &BuildParams::default()))
+        };
+        let bits = |b: &MeshBvh| -> Vec<u32> {
+            b.packs
+                .iter()
+                .flat_map(|p| {
+                    p.v.as_flattened()
+                        .as_flattened()
+                        .iter()
+                        .map(|x| x.to_bits())
+                        .chain(p.prim)
+                })
+                .collect()
+        };
+        let one = build(1);
+        for threads in [2, 3] {
+            let many = build(threads);
+            assert!(one.wide == many.wide, "{threads} threads: another tree");
+            assert!(bits(&one) == bits(&many), "{threads} threads: other packs");
+            assert_eq!(one.stats(), many.stats());
+        }
+    }
+
     #[test]
     fn closest_hit_equals_brute_force_on_random_soups() {
         for seed in 0..3 {

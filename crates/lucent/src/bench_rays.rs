@@ -13,7 +13,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use lucent_accel::{BuildParams, BuildQuality, MeshBvh};
+use lucent_accel::{BuildParams, BuildQuality, MeshBvh, TraversalCounts};
 use lucent_geom::{Ray, TriMesh, TriangleTest, Vec3};
 use lucent_render::with_threads;
 use std::path::{Path, PathBuf};
@@ -53,6 +53,11 @@ pub struct RaysBenchArgs {
     /// Compare the any-hit results with this occlusion file (needs --occluded).
     #[arg(long, value_name = "FILE", requires = "occluded")]
     compare_occluded: Option<PathBuf>,
+    /// After timing, one untimed pass that counts the 4-wide nodes and
+    /// triangle packs each query tests (closest hit, and any hit with
+    /// --occluded); adds nodes_per_ray and packs_per_ray to the JSON line.
+    #[arg(long)]
+    counts: bool,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -151,6 +156,22 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
                 .filter(|(a, b)| (**a != 0) != (**b != 0))
                 .count();
             json += &format!(",\"occluded_disagree\":{differ}");
+        }
+    }
+    if args.counts {
+        let mut closest = TraversalCounts::default();
+        let mut any = TraversalCounts::default();
+        for ray in &rays {
+            bvh.intersect_counted(ray, f32::INFINITY, &mut closest);
+            if args.occluded.is_some() {
+                bvh.occluded_counted(ray, f32::INFINITY, &mut any);
+            }
+        }
+        let [nodes, packs] = closest.per_ray();
+        json += &format!(",\"nodes_per_ray\":{nodes:.3},\"packs_per_ray\":{packs:.3}");
+        if args.occluded.is_some() {
+            let [nodes, packs] = any.per_ray();
+            json += &format!(",\"occluded_nodes_per_ray\":{nodes:.3},\"occluded_packs_per_ray\":{packs:.3}");
         }
     }
     if let Some(other) = &args.compare_hits {
