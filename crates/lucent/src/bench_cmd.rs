@@ -70,13 +70,12 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
             times.push(out.elapsed.as_secs_f64());
             rays = out.stats.total();
         }
-        times.sort_by(f64::total_cmp);
-        let median = median(&times);
+        let median = median(&mut times);
         Ok(format!(
-            "{{\"scene\":\"{}\",\"width\":{},\"height\":{},\"spp\":{},\"shading\":\"{}\",\"threads\":{},\
+            "{{\"scene\":{},\"width\":{},\"height\":{},\"spp\":{},\"shading\":\"{}\",\"threads\":{},\
 \"triangles\":{},\"load_s\":{:.4},\"build_s\":{:.4},\"reps\":{},\"render_s_median\":{:.4},\
 \"render_s_min\":{:.4},\"render_s_max\":{:.4},\"rays\":{},\"mrays_s\":{:.3}}}",
-            name.replace('\\', "\\\\").replace('"', "\\\""),
+            json_str(&name),
             settings.width,
             settings.height,
             settings.spp,
@@ -97,13 +96,20 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// Median of sorted values (mean of the middle two for even counts).
-pub(crate) fn median(sorted: &[f64]) -> f64 {
-    match sorted.len() {
+/// Median of timings (mean of the middle two for even counts; 0 for none).
+/// Sorts `values` in place, so callers may read the extremes afterwards.
+pub(crate) fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    match values.len() {
         0 => 0.0,
-        n if n % 2 == 1 => sorted[n / 2],
-        n => 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]),
+        n if n % 2 == 1 => values[n / 2],
+        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
     }
+}
+
+/// `s` as a JSON string literal, quotes and escapes included.
+pub(crate) fn json_str(s: &str) -> String {
+    serde_json::Value::from(s).to_string()
 }
 
 #[cfg(test)]
@@ -112,8 +118,8 @@ mod tests {
 
     #[test]
     fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&[]), 0.0);
-        assert_eq!(median(&[1.0, 2.0, 9.0]), 2.0);
-        assert_eq!(median(&[1.0, 2.0, 4.0, 9.0]), 3.0);
+        assert_eq!(median(&mut []), 0.0);
+        assert_eq!(median(&mut [9.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 9.0, 1.0, 2.0]), 3.0);
     }
 }

@@ -11,6 +11,7 @@
 //! the closest hits against another tracer's hits file and classifies every
 //! disagreement (see [`compare`]).
 
+use crate::bench_cmd::{json_str, median};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use lucent_accel::{BuildParams, BuildQuality, MeshBvh, TraversalCounts};
@@ -330,19 +331,6 @@ fn occlude(bvh: &MeshBvh, rays: &[Ray], occ: &mut [u8], threads: usize) {
             *o = u8::from(bvh.occluded(ray, f32::INFINITY));
         }
     });
-}
-
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    match values.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => values[n / 2],
-        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
-    }
-}
-
-fn json_str(s: &str) -> String {
-    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
 }
 
 /// How two tracers' closest hits differ.
