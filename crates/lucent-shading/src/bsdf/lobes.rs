@@ -57,10 +57,12 @@ pub(super) fn lambert_sample(wo: Vec3, u: Vec2) -> Vec3 {
 // ------------------------------------------------- normalised Phong lobe
 
 /// `cos alpha`, the cosine between `wi` and the mirror direction of `wo`,
-/// or `None` when the two are on opposite sides.
+/// or `None` outside the lobe (`cos alpha <= 0`, which matters for
+/// `n = 0`) or when the two are on opposite sides.
 #[inline]
 fn phong_cos(wo: Vec3, wi: Vec3) -> Option<f32> {
-    same_side(wo, wi).then(|| reflect_z(wo).dot(wi).clamp(0.0, 1.0))
+    let c = reflect_z(wo).dot(wi);
+    (same_side(wo, wi) && c > 0.0).then(|| c.min(1.0))
 }
 
 /// The normalised (modified) Phong BRDF of Lafortune and Willems 1994,

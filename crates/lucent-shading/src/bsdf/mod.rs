@@ -39,6 +39,8 @@
 
 mod lobes;
 #[cfg(test)]
+mod stats;
+#[cfg(test)]
 mod tests;
 
 use crate::optics::{fresnel_dielectric, refract};
