@@ -210,7 +210,7 @@ fn chi_square(
             let fine = loop {
                 s *= 2;
                 let fine = bin(s);
-                if (fine - coarse).abs() <= 1e-7 + 1e-5 * fine || s >= MAX_SIMPSON {
+                if (fine - coarse).abs() <= 1e-6 + 1e-4 * fine || s >= MAX_SIMPSON {
                     break fine;
                 }
                 coarse = fine;
