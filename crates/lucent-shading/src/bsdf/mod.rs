@@ -145,10 +145,11 @@ pub struct Bsdf {
     cdf: [f32; 4],
 }
 
-/// Weights as colours: NaN and negative components become 0.
+/// Weights as colours: NaN, infinite and negative components become 0.
 #[inline]
 fn clean(v: Vec3) -> Vec3 {
-    Vec3::new(v.x.max(0.0), v.y.max(0.0), v.z.max(0.0))
+    let c = |x: f32| if x.is_finite() && x > 0.0 { x } else { 0.0 };
+    Vec3::new(c(v.x), c(v.y), c(v.z))
 }
 
 /// A usable unit direction with non-zero z, or `None`.
@@ -160,7 +161,7 @@ fn unit(v: Vec3) -> Option<Vec3> {
 
 impl Bsdf {
     /// A mixture of lobes; weights are taken as given (callers conserve
-    /// energy), NaN or negative components read as zero.
+    /// energy), NaN, infinite or negative components read as zero.
     pub(crate) fn mix(
         diffuse: Vec3,
         glossy: Vec3,
@@ -183,10 +184,7 @@ impl Bsdf {
         let eta = if eta > 0.0 && eta.is_finite() { eta } else { 1.0 };
         let (diffuse, glossy, conductor, dielectric) =
             (clean(diffuse), clean(glossy), clean(conductor), clean(dielectric));
-        let mean = |v: Vec3| {
-            let m = v.element_sum() / 3.0;
-            if m.is_finite() { m } else { 0.0 }
-        };
+        let mean = |v: Vec3| v.element_sum() / 3.0;
         let w = [mean(diffuse), mean(glossy), mean(conductor), mean(dielectric)];
         let total: f32 = w.iter().sum();
         let mut cdf = [0.0; 4];
@@ -205,13 +203,7 @@ impl Bsdf {
         }
         // Parameters of absent lobes are zeroed, so equal mixtures compare
         // equal whatever the unused parameters were.
-        let keep = |k: usize, v: f32, none: f32| {
-            if cdf[k] > if k == 0 { 0.0 } else { cdf[k - 1] } {
-                v
-            } else {
-                none
-            }
-        };
+        let keep = |k: usize, v: f32, none: f32| if w[k] > 0.0 && total.is_finite() { v } else { none };
         let (exponent, alpha, eta) = (
             keep(GLOSSY, exponent, 0.0),
             keep(CONDUCTOR, alpha, 0.0),

@@ -217,6 +217,16 @@ fn degenerate_input_gives_zero_or_none_never_nan() {
         Bsdf::dielectric(1.5),
         Bsdf::dielectric(f32::NAN),
         Bsdf::phong(Vec3::ONE, f32::INFINITY),
+        Bsdf::lambertian(Vec3::new(f32::INFINITY, 0.5, f32::MAX)),
+        Bsdf::mix(
+            Vec3::splat(f32::MAX),
+            Vec3::splat(f32::MAX),
+            1.0,
+            Vec3::ZERO,
+            0.0,
+            Vec3::ONE,
+            1.5,
+        ),
         Material {
             ks: Vec3::splat(0.3),
             kr: Vec3::splat(0.2),
