@@ -1,7 +1,9 @@
-//! Image and statistics snapshots of the seed scene with both shading modes,
-//! and a text snapshot of what the seed scene loads into.
+//! Image and statistics snapshots of the seed scene with both integrators
+//! (Whitted in both shading modes, and the path tracer), of the Mitsuba
+//! Cornell box with the path tracer, and a text snapshot of what the seed
+//! scene loads into.
 
-use lucent_render::{Film, Shading, extract};
+use lucent_render::{Film, Integrator, Shading, extract};
 use lucent_tests::{assert_image_snapshot, load_repo_scene, render_scene};
 
 /// The seed scene at 128x72, 2 samples per pixel, seed 1.
@@ -20,6 +22,30 @@ fn seed_scene_gouraud() {
 #[test]
 fn seed_scene_phong() {
     assert_image_snapshot!("seed_phong", &seed_film(Shading::Phong));
+}
+
+/// The seed scene path traced at 128x72, 8 samples per pixel, max depth 8,
+/// seed 1: the report's scene moved to physically based materials (its
+/// directional light and background light it).
+#[test]
+fn seed_scene_path() {
+    let scene = load_repo_scene("res/scenes/seed.toml");
+    let film = render_scene(&scene, |s| {
+        (s.width, s.height, s.spp, s.seed) = (128, 72, 8, 1);
+        (s.integrator, s.max_depth) = (Integrator::Path, 8);
+    });
+    assert_image_snapshot!("seed_path", &film);
+}
+
+/// The Mitsuba Cornell box at 64x64, 16 samples per pixel, max depth 16
+/// (its own settings otherwise).
+#[test]
+fn cornell_mitsuba_path() {
+    let scene = load_repo_scene("res/scenes/cornell-mitsuba.toml");
+    let film = render_scene(&scene, |s| {
+        (s.width, s.height, s.spp, s.seed) = (64, 64, 16, 1);
+    });
+    assert_image_snapshot!("cornell_mitsuba_path", &film);
 }
 
 #[test]

@@ -79,6 +79,44 @@ pub fn save_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), 
     })
 }
 
+/// Encodes linear RGB floats (interleaved, row 0 at the top) as an
+/// OpenEXR image with 32-bit float channels.
+pub fn encode_exr(width: u32, height: u32, rgb: &[f32]) -> Result<Vec<u8>, AssetError> {
+    let img = image::Rgb32FImage::from_raw(width, height, rgb.to_vec()).ok_or_else(|| {
+        AssetError::format(
+            "<exr>",
+            format!("{} floats do not make a {width}x{height} RGB image", rgb.len()),
+        )
+    })?;
+    let mut out = Vec::new();
+    img.write_to(&mut Cursor::new(&mut out), ImageFormat::OpenExr)
+        .map_err(|e| AssetError::format("<exr>", format!("cannot encode EXR: {e}")))?;
+    Ok(out)
+}
+
+/// Writes linear RGB floats as an OpenEXR file (32-bit float channels,
+/// linear radiance, no transfer function).
+pub fn save_exr(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<(), AssetError> {
+    let bytes = encode_exr(width, height, rgb).map_err(|e| match e {
+        AssetError::Format { message, .. } => AssetError::format(path, message),
+        other => other,
+    })?;
+    std::fs::write(path, bytes).map_err(|error| AssetError::Io {
+        path: path.to_owned(),
+        error,
+    })
+}
+
+/// Decodes an OpenEXR image into interleaved linear RGB floats; returns the
+/// width, the height and the pixels (row 0 at the top). `path` is used in
+/// messages only.
+pub fn decode_exr(bytes: &[u8], path: &Path) -> Result<(u32, u32, Vec<f32>), AssetError> {
+    let img = image::load_from_memory_with_format(bytes, ImageFormat::OpenExr)
+        .map_err(|e| AssetError::format(path, format!("cannot decode EXR: {e}")))?;
+    let rgb = img.to_rgb32f();
+    Ok((rgb.width(), rgb.height(), rgb.into_raw()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -126,6 +164,17 @@ mod tests {
         // Lossy, but a flat grey block survives within a step or two.
         let v = tex.texel(3, 3);
         assert!((v.x - 0.2158605).abs() < 0.01, "{v}");
+    }
+
+    #[test]
+    fn exr_round_trips_linear_floats_exactly() {
+        let px = [0.0, 0.5, 1.0, 15.0, 1e-6, 123.456];
+        let exr = encode_exr(2, 1, &px).map_err(|e| e.to_string());
+        let Ok(exr) = exr else { panic!("{exr:?}") };
+        let back = decode_exr(&exr, Path::new("t.exr")).map_err(|e| e.to_string());
+        assert_eq!(back, Ok((2, 1, px.to_vec())));
+        assert!(encode_exr(2, 2, &px).is_err());
+        assert!(decode_exr(b"not an exr", Path::new("t.exr")).is_err());
     }
 
     #[test]

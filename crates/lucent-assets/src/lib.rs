@@ -5,7 +5,8 @@
 //!   [`Scene`](lucent_scene::Scene);
 //! - [`load_mesh`] reads one OBJ (with its MTL materials) or PLY file;
 //! - [`load_texture`] decodes PNG/JPEG into linear RGB;
-//! - [`encode_png`] / [`save_png`] write 8-bit sRGB images;
+//! - [`encode_png`] / [`save_png`] write 8-bit sRGB images, [`encode_exr`] /
+//!   [`save_exr`] linear float OpenEXR images ([`decode_exr`] reads them back);
 //! - [`encode_ply`] / [`save_ply`] write triangle meshes as PLY.
 //!
 //! Reading goes through an [`AssetSource`]: [`FileSystem`] for files on
@@ -42,7 +43,7 @@ mod source;
 mod hostile_tests;
 
 pub use error::{AssetError, LoadReport, Location};
-pub use image_io::{encode_png, load_texture, save_png, texture_from_bytes};
+pub use image_io::{decode_exr, encode_exr, encode_png, load_texture, save_exr, save_png, texture_from_bytes};
 pub use mesh::{MeshPart, load_mesh, load_mesh_from};
 pub use ply_write::{PlyFormat, encode_ply, save_ply};
 pub use scene_load::{load_scene, load_scene_from};

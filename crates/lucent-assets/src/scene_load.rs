@@ -89,6 +89,7 @@ impl Loader<'_> {
             min_weight: r.min_weight.unwrap_or(s.min_weight),
             shading: r.shading.unwrap_or(s.shading),
             seed: r.seed.unwrap_or(s.seed),
+            integrator: r.integrator.unwrap_or(s.integrator),
         };
     }
 
@@ -222,7 +223,14 @@ impl Loader<'_> {
     }
 
     fn spawn_lights(&mut self) {
-        if self.file.desc.lights.is_empty() {
+        // Emissive materials light the scene for the path tracer.
+        let emissive = self
+            .file
+            .desc
+            .materials
+            .values()
+            .any(|m| m.emission.0.max_element() > 0.0);
+        if self.file.desc.lights.is_empty() && !emissive {
             self.report
                 .warn(&self.file.path, "no lights: only ambient light will show");
         }

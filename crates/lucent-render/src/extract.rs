@@ -3,6 +3,7 @@
 //! This is the only file of the renderer that names hecs. Everything after
 //! it addresses meshes, materials and instances by `u32` index.
 
+use crate::lights::LightSet;
 use lucent_accel::{BuildParams, Instance, MeshBvh, SceneBvh};
 use lucent_geom::{Affine3A, Mat3A, TriMesh};
 use lucent_scene::camera::{Camera, OrbitRig};
@@ -62,6 +63,8 @@ pub struct RenderScene {
     pub bvh: SceneBvh,
     /// What the scene needs.
     pub features: SceneFeatures,
+    /// Emissive triangles and lights, as the path tracer samples them.
+    pub light_set: LightSet,
 }
 
 /// Why a scene could not be extracted.
@@ -165,6 +168,14 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         .map(|(e, l)| (e.to_bits().get(), *l))
         .collect();
     lights.sort_by_key(|l| l.0);
+    let lights: Vec<Light> = lights.into_iter().map(|(_, l)| l).collect();
+    let bounds = bvh.bounds();
+    let scene_radius = if bounds.is_empty() {
+        0.0
+    } else {
+        0.5 * bounds.extent().length()
+    };
+    let light_set = LightSet::new(&meshes, &materials, &instances, &lights, scene_radius);
     let features = SceneFeatures {
         transmissive: materials.iter().any(Material::is_transmissive),
         reflective: materials.iter().any(Material::is_reflective),
@@ -175,12 +186,13 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         materials,
         instances,
         instance_names,
-        lights: lights.into_iter().map(|(_, l)| l).collect(),
+        lights,
         camera,
         rig,
         environment: scene.environment,
         bvh,
         features,
+        light_set,
     })
 }
 

@@ -70,6 +70,13 @@ impl Film {
         }
     }
 
+    /// Mean radiance of every pixel as interleaved RGB floats, row-major,
+    /// row 0 at the top (what a linear EXR holds).
+    pub fn to_linear_rgb(&self) -> Vec<f32> {
+        let k = self.scale();
+        self.sum.iter().flat_map(|s| (*s * k).to_array()).collect()
+    }
+
     /// Mean radiance of every pixel, row-major.
     pub fn to_linear(&self) -> Vec<Vec3> {
         let k = self.scale();
@@ -80,7 +87,21 @@ impl Film {
     /// [0, 1], encoded with the sRGB transfer function and rounded. NaN shows
     /// as black.
     pub fn to_srgb8(&self) -> Vec<u8> {
-        let k = self.scale();
+        self.to_srgb8_exposed(0.0)
+    }
+
+    /// [`Film::to_srgb8`] after scaling the radiance by `2^exposure_ev`
+    /// (a photographic exposure in stops: +1 doubles it, -1 halves it).
+    ///
+    /// ```
+    /// use lucent_render::Film;
+    /// use lucent_geom::Vec3;
+    /// let film = Film::from_pixels(1, 1, vec![Vec3::splat(0.25)]).unwrap_or_else(|| Film::new(1, 1));
+    /// assert_eq!(film.to_srgb8_exposed(2.0), vec![255, 255, 255]);
+    /// assert_eq!(film.to_srgb8_exposed(0.0), film.to_srgb8());
+    /// ```
+    pub fn to_srgb8_exposed(&self, exposure_ev: f32) -> Vec<u8> {
+        let k = self.scale() * exposure_ev.exp2();
         let mut out = Vec::with_capacity(self.sum.len() * 3);
         for s in &self.sum {
             for c in (*s * k).to_array() {

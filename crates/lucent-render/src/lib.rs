@@ -34,13 +34,15 @@
 mod camera;
 mod extract;
 mod film;
+pub mod lights;
+pub mod path;
 mod render;
 pub mod whitted;
 
 pub use camera::PinholeCamera;
 pub use extract::{ExtractError, RenderInstance, RenderScene, SceneFeatures, extract};
 pub use film::{Film, ImageStats};
-pub use lucent_scene::{RenderSettings, Shading};
+pub use lucent_scene::{Integrator, RenderSettings, Shading};
 pub use render::{
     RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, render_samples_cancellable,
     with_threads,

@@ -1,7 +1,8 @@
 //! The parallel, deterministic render loop.
 
+use crate::path::PathTracer;
 use crate::whitted::Whitted;
-use crate::{Film, PinholeCamera, RenderScene, RenderSettings};
+use crate::{Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
 use lucent_geom::{Pcg32, hash_u64};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -154,6 +155,12 @@ pub fn render_samples_cancellable(
     Some(stats)
 }
 
+/// The integrator a render runs.
+enum Tracer<'a> {
+    Whitted(Whitted<'a>),
+    Path(PathTracer<'a>),
+}
+
 /// Adds `samples` to each row of `film` not started before `cancel` was set.
 fn trace_rows(
     scene: &RenderScene,
@@ -164,7 +171,10 @@ fn trace_rows(
     cancel: &AtomicBool,
 ) -> RayStats {
     let camera = PinholeCamera::new(&scene.camera, &scene.rig, film.width(), film.height());
-    let tracer = Whitted::new(scene, settings);
+    let tracer = match settings.integrator {
+        Integrator::Whitted => Tracer::Whitted(Whitted::new(scene, settings)),
+        Integrator::Path => Tracer::Path(PathTracer::new(scene, settings)),
+    };
     let width = film.width() as usize;
     let seed = settings.seed;
     let rows_done = AtomicUsize::new(0);
@@ -179,14 +189,24 @@ fn trace_rows(
             for (col, px) in pixels.iter_mut().enumerate() {
                 let pixel_idx = (row * width + col) as u64;
                 for s in samples.clone() {
-                    let (jx, jy) = if s == 0 {
-                        (0.5, 0.5)
-                    } else {
-                        let mut rng = Pcg32::new(hash_u64(&[seed, pixel_idx, s as u64]), 0);
-                        (rng.next_f32(), rng.next_f32())
-                    };
-                    let ray = camera.ray(col as f32 + jx, row as f32 + jy);
-                    *px += tracer.trace_primary(ray, &mut stats);
+                    let mut rng = Pcg32::new(hash_u64(&[seed, pixel_idx, s as u64]), 0);
+                    match &tracer {
+                        Tracer::Whitted(whitted) => {
+                            let (jx, jy) = if s == 0 {
+                                (0.5, 0.5)
+                            } else {
+                                (rng.next_f32(), rng.next_f32())
+                            };
+                            let ray = camera.ray(col as f32 + jx, row as f32 + jy);
+                            *px += whitted.trace_primary(ray, &mut stats);
+                        }
+                        Tracer::Path(path) => {
+                            // Every sample uniform over the pixel: a box filter.
+                            let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                            let ray = camera.ray(col as f32 + jx, row as f32 + jy);
+                            *px += path.trace_primary(ray, &mut rng, &mut stats);
+                        }
+                    }
                 }
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);

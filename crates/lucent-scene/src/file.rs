@@ -208,7 +208,7 @@ pub struct RenderDesc {
     /// Samples per pixel (1 to 65536).
     #[serde(default, deserialize_with = "spp")]
     pub spp: Option<u32>,
-    /// Recursion depth (0 to 64).
+    /// Path length limit (0 to 64); its meaning depends on the integrator.
     #[serde(default, deserialize_with = "depth")]
     pub max_depth: Option<u32>,
     /// Minimum ray weight (0 to 1).
@@ -218,6 +218,8 @@ pub struct RenderDesc {
     pub shading: Option<Shading>,
     /// Sample seed.
     pub seed: Option<u64>,
+    /// `"whitted"` or `"path"`.
+    pub integrator: Option<crate::Integrator>,
 }
 
 /// `[camera]`: the report's orbit rig and field of view.

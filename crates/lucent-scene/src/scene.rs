@@ -35,6 +35,37 @@ impl Shading {
     }
 }
 
+/// Which light transport algorithm renders the image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// The seed report's Whitted ray tracer: Phong local lighting, shadow
+    /// rays, mirror and refraction rays weighted by `kr` and `kt`.
+    #[default]
+    Whitted,
+    /// Unidirectional path tracing of physically based BSDFs, with
+    /// next-event estimation and multiple importance sampling.
+    Path,
+}
+
+impl Integrator {
+    /// Names as written in scene files and on the command line.
+    pub const NAMES: [(&'static str, Integrator); 2] = [("whitted", Integrator::Whitted), ("path", Integrator::Path)];
+
+    /// The integrator called `name`.
+    pub fn from_name(name: &str) -> Option<Integrator> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|&(_, i)| i)
+    }
+
+    /// This integrator's name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES
+            .iter()
+            .find(|(_, i)| *i == self)
+            .map_or("whitted", |(n, _)| n)
+    }
+}
+
 /// Light and colour that belong to the whole scene rather than to an entity.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Environment {
@@ -66,7 +97,12 @@ pub struct RenderSettings {
     pub height: u32,
     /// Samples (primary rays) per pixel.
     pub spp: u32,
-    /// Deepest recursion: 0 traces only primary rays.
+    /// Path length limit. Whitted: the deepest reflection/refraction
+    /// recursion (0 traces camera rays and their shadow rays only). Path:
+    /// Mitsuba's `max_depth`, the longest path in segments counted from the
+    /// camera (1 shows only emitters seen directly, 2 adds direct light, and
+    /// so on); a Whitted depth `d` follows the same chains as a path depth
+    /// `d + 2`.
     pub max_depth: u32,
     /// Rays whose accumulated weight falls below this are not traced (S11).
     pub min_weight: f32,
@@ -74,6 +110,8 @@ pub struct RenderSettings {
     pub shading: Shading,
     /// Seed of the per-pixel sample streams.
     pub seed: u64,
+    /// Whitted (the report's model) or path tracing.
+    pub integrator: Integrator,
 }
 
 impl Default for RenderSettings {
@@ -86,6 +124,7 @@ impl Default for RenderSettings {
             min_weight: 0.01,
             shading: Shading::Gouraud,
             seed: 0,
+            integrator: Integrator::Whitted,
         }
     }
 }

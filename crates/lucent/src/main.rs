@@ -16,7 +16,7 @@ mod viewer;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use lucent_assets::LoadReport;
-use lucent_scene::{Scene, Shading};
+use lucent_scene::{Integrator, Scene, Shading};
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -50,7 +50,9 @@ struct QualityArgs {
     /// Image size, WIDTHxHEIGHT (1 to 16384 each).
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     size: Option<(u32, u32)>,
-    /// Recursion depth for reflection and refraction rays (0 to 64).
+    /// Path length limit (0 to 64). Whitted: recursion depth of reflection
+    /// and refraction rays. Path: Mitsuba's max_depth, segments counted from
+    /// the camera (1 = emitters only, 2 = direct light).
     #[arg(long, value_name = "D", value_parser = clap::value_parser!(u32).range(0..=64))]
     max_depth: Option<u32>,
     /// Rays whose weight falls below this are not traced (0 to 1).
@@ -62,6 +64,15 @@ struct QualityArgs {
     /// Seed of the per-pixel sample streams.
     #[arg(long)]
     seed: Option<u64>,
+    /// Light transport: the report's Whitted model or path tracing.
+    #[arg(long, value_enum)]
+    integrator: Option<IntegratorArg>,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum IntegratorArg {
+    Whitted,
+    Path,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -90,6 +101,12 @@ impl QualityArgs {
         }
         if let Some(seed) = self.seed {
             s.seed = seed;
+        }
+        if let Some(i) = self.integrator {
+            s.integrator = match i {
+                IntegratorArg::Whitted => Integrator::Whitted,
+                IntegratorArg::Path => Integrator::Path,
+            };
         }
     }
 }

@@ -99,6 +99,16 @@ fn scenes_without_lights_warn() {
         report.warnings,
         vec!["scenes/s.toml: no lights: only ambient light will show".to_owned()]
     );
+    // An emissive material is a light source for the path tracer.
+    let text = "[materials.lamp]\nemission = 4\n[[objects]]\nshape = \"cube\"\nmaterial = \"lamp\"\n";
+    let (scene, report) = load(text).unwrap_or_else(|e| panic!("{e}"));
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    assert_eq!(scene.settings.integrator, lucent_scene::Integrator::Whitted);
+    let (scene, _) = load("[render]\nintegrator = \"path\"\nmax_depth = 16\n").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        (scene.settings.integrator, scene.settings.max_depth),
+        (lucent_scene::Integrator::Path, 16)
+    );
 }
 
 #[test]

@@ -1,0 +1,384 @@
+//! The lights the path tracer samples: emissive triangles (area lights, from
+//! materials with `emission`, OBJ `Ke` included), point and directional
+//! lights, chosen in proportion to their power.
+//!
+//! An emissive triangle emits its material's `emission` as constant radiance
+//! on one side only: the side its geometric normal points to, oriented to
+//! agree with the mesh's vertex normals where it has them (with the
+//! counter-clockwise winding otherwise). Its back is black as far as
+//! emission goes (Mitsuba's one-sided `area` emitter).
+//!
+//! A light is picked from one discrete distribution over all lights, with
+//! probability proportional to an estimate of its power: `pi * area *
+//! luminance(radiance)` for a triangle, `4 pi * luminance(intensity)` for a
+//! point light and `pi * r^2 * luminance(irradiance)` for a directional light,
+//! `r` being the radius of the scene's bounding sphere. A point is then drawn
+//! uniformly over the chosen triangle's area. The constant background is not
+//! sampled here: paths that leave the scene collect it.
+
+use crate::RenderInstance;
+use lucent_geom::{TriMesh, Vec2, Vec3, triangle_normal};
+use lucent_shading::{Light, Material};
+use std::sync::Arc;
+
+/// Marks an instance without emissive triangles.
+const NONE: u32 = u32::MAX;
+
+/// One emissive triangle in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Emitter {
+    /// First corner.
+    pub p0: Vec3,
+    /// Second corner minus the first.
+    pub e1: Vec3,
+    /// Third corner minus the first.
+    pub e2: Vec3,
+    /// Unit normal of the emitting side (zero for a degenerate triangle).
+    pub n: Vec3,
+    /// Area.
+    pub area: f32,
+    /// Emitted radiance.
+    pub radiance: Vec3,
+}
+
+/// A point chosen on a light, as seen from a shading point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSample {
+    /// Unit direction from the shading point towards the light.
+    pub wi: Vec3,
+    /// Distance to the sampled point (infinite for a directional light).
+    pub distance: f32,
+    /// The point on the light (meaningless for a directional light).
+    pub point: Vec3,
+    /// The light's normal at `point` (zero for point and directional lights).
+    pub normal: Vec3,
+    /// Radiance (area light) or irradiance (point, directional) arriving,
+    /// before division by `pdf`.
+    pub value: Vec3,
+    /// Solid-angle density of this direction, the light's selection
+    /// probability included; for a delta light, the selection probability.
+    pub pdf: f32,
+    /// Whether the light is a point or directional light, which no BSDF
+    /// sample can hit (no multiple importance sampling).
+    pub delta: bool,
+}
+
+/// Every light of a scene with the distribution used to pick one.
+#[derive(Clone, Debug, Default)]
+pub struct LightSet {
+    emitters: Vec<Emitter>,
+    lights: Vec<Light>,
+    /// Per instance: index of its first emitter, or `NONE`.
+    instance_first: Vec<u32>,
+    /// Cumulative selection probabilities over emitters then lights; the last
+    /// entry is 1 (empty when there is nothing to sample).
+    cdf: Vec<f32>,
+    /// Selection probability of each emitter then light.
+    prob: Vec<f32>,
+}
+
+impl LightSet {
+    /// Gathers the emissive triangles of every instance whose material emits,
+    /// plus the point and directional `lights`. `scene_radius` bounds the
+    /// scene (it prices directional lights against the others).
+    pub fn new(
+        meshes: &[Arc<TriMesh>],
+        materials: &[Material],
+        instances: &[RenderInstance],
+        lights: &[Light],
+        scene_radius: f32,
+    ) -> LightSet {
+        let mut emitters = Vec::new();
+        let mut instance_first = Vec::with_capacity(instances.len());
+        for inst in instances {
+            let emission = materials
+                .get(inst.material as usize)
+                .map_or(Vec3::ZERO, |m| m.emission.max(Vec3::ZERO));
+            let Some(mesh) = meshes.get(inst.mesh as usize) else {
+                instance_first.push(NONE);
+                continue;
+            };
+            if !(emission.max_element() > 0.0 && emission.is_finite()) {
+                instance_first.push(NONE);
+                continue;
+            }
+            instance_first.push(emitters.len() as u32);
+            for (t, idx) in mesh.indices().iter().enumerate() {
+                let obj = mesh.triangle(t);
+                let [a, b, c] = obj.map(|p| inst.world_from_object.transform_point3(p));
+                let cross = (b - a).cross(c - a);
+                // The same geometric normal the integrators use: the object's
+                // winding normal carried by the inverse transpose, so a
+                // mirroring transform keeps the emitting side.
+                let mut n = (inst.normal_from_object * triangle_normal(obj)).normalize_or_zero();
+                if let Some(normals) = mesh.normals() {
+                    let sum: Vec3 = idx.iter().map(|&i| inst.normal_from_object * normals[i as usize]).sum();
+                    if sum.dot(n) < 0.0 {
+                        n = -n;
+                    }
+                }
+                let area = 0.5 * cross.length();
+                let ok = n != Vec3::ZERO && area.is_finite() && area > 0.0;
+                emitters.push(Emitter {
+                    p0: a,
+                    e1: b - a,
+                    e2: c - a,
+                    n: if ok { n } else { Vec3::ZERO },
+                    area: if ok { area } else { 0.0 },
+                    radiance: emission,
+                });
+            }
+        }
+        let lum = |c: Vec3| crate::film::luminance(c.max(Vec3::ZERO)).max(0.0);
+        let r = if scene_radius.is_finite() {
+            scene_radius.max(0.0)
+        } else {
+            0.0
+        };
+        let power = emitters
+            .iter()
+            .map(|e| std::f32::consts::PI * e.area * lum(e.radiance))
+            .chain(lights.iter().map(|l| match *l {
+                Light::Point { intensity, .. } => 4.0 * std::f32::consts::PI * lum(intensity),
+                Light::Directional { intensity, .. } => std::f32::consts::PI * r * r * lum(intensity).max(0.0),
+            }))
+            .map(|p| if p.is_finite() { p as f64 } else { 0.0 })
+            .collect::<Vec<f64>>();
+        let total: f64 = power.iter().sum();
+        let (cdf, prob) = if total > 0.0 {
+            let prob: Vec<f32> = power.iter().map(|p| (p / total) as f32).collect();
+            let mut acc = 0.0f64;
+            let mut cdf: Vec<f32> = power
+                .iter()
+                .map(|p| {
+                    acc += p;
+                    (acc / total) as f32
+                })
+                .collect();
+            if let Some(last) = cdf.last_mut() {
+                *last = 1.0;
+            }
+            (cdf, prob)
+        } else {
+            (Vec::new(), vec![0.0; power.len()])
+        };
+        LightSet {
+            emitters,
+            lights: lights.to_vec(),
+            instance_first,
+            cdf,
+            prob,
+        }
+    }
+
+    /// Whether there is anything to sample.
+    pub fn is_empty(&self) -> bool {
+        self.cdf.is_empty()
+    }
+
+    /// The emissive triangles.
+    pub fn emitters(&self) -> &[Emitter] {
+        &self.emitters
+    }
+
+    /// The emitter for triangle `prim` of instance `instance`, if its
+    /// material emits.
+    #[inline]
+    pub fn emitter(&self, instance: u32, prim: u32) -> Option<(u32, &Emitter)> {
+        let first = *self.instance_first.get(instance as usize)?;
+        if first == NONE {
+            return None;
+        }
+        let i = first.checked_add(prim)?;
+        self.emitters.get(i as usize).map(|e| (i, e))
+    }
+
+    /// Radiance that emitter `e` sends along `wo` (the unit direction from
+    /// the light towards the viewer): its radiance on the emitting side,
+    /// black behind.
+    #[inline]
+    pub fn emitted(e: &Emitter, wo: Vec3) -> Vec3 {
+        if e.n.dot(wo) > 0.0 { e.radiance } else { Vec3::ZERO }
+    }
+
+    /// Solid-angle density with which [`LightSet::sample`] picks the point
+    /// `point` on emitter `index` from the shading point `from`.
+    #[inline]
+    pub fn pdf_emitter(&self, index: u32, from: Vec3, point: Vec3) -> f32 {
+        let (Some(e), Some(&p)) = (self.emitters.get(index as usize), self.prob.get(index as usize)) else {
+            return 0.0;
+        };
+        let d = point - from;
+        let dist2 = d.length_squared();
+        let cos = (e.n.dot(d) / dist2.sqrt()).abs();
+        let pdf = p * dist2 / (e.area * cos);
+        if p > 0.0 && pdf.is_finite() && pdf > 0.0 {
+            pdf
+        } else {
+            0.0
+        }
+    }
+
+    /// Picks a light with `u_pick` and a point on it with `u`, as seen from
+    /// `from`; `None` when there is no light, the pick has zero density, or
+    /// the point is behind an emitter.
+    #[inline]
+    pub fn sample(&self, from: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
+        if self.cdf.is_empty() {
+            return None;
+        }
+        let idx = self.cdf.partition_point(|&c| c <= u_pick).min(self.cdf.len() - 1);
+        let p = *self.prob.get(idx)?;
+        if p <= 0.0 {
+            return None;
+        }
+        if let Some(e) = self.emitters.get(idx) {
+            // Uniform over the triangle (Shirley's square-root map).
+            let s = u.x.sqrt();
+            let (b1, b2) = (1.0 - s, u.y * s);
+            let point = e.p0 + e.e1 * b1 + e.e2 * b2;
+            let d = point - from;
+            let dist2 = d.length_squared();
+            let dist = dist2.sqrt();
+            if !dist.is_finite() || dist <= 0.0 {
+                return None;
+            }
+            let wi = d / dist;
+            let cos = -e.n.dot(wi);
+            if cos <= 0.0 {
+                return None;
+            }
+            return Some(LightSample {
+                wi,
+                distance: dist,
+                point,
+                normal: e.n,
+                value: e.radiance,
+                pdf: p * dist2 / (e.area * cos),
+                delta: false,
+            });
+        }
+        let light = self.lights.get(idx - self.emitters.len())?;
+        let s = light.sample(from)?;
+        Some(LightSample {
+            wi: s.to_light,
+            distance: s.distance,
+            point: from + s.to_light * s.distance.min(f32::MAX),
+            normal: Vec3::ZERO,
+            value: s.intensity,
+            pdf: p,
+            delta: true,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lucent_geom::{Affine3A, Mat3A, Pcg32};
+
+    fn quad(y: f32, down: bool) -> TriMesh {
+        let p = vec![
+            Vec3::new(-1.0, y, -1.0),
+            Vec3::new(1.0, y, -1.0),
+            Vec3::new(1.0, y, 1.0),
+            Vec3::new(-1.0, y, 1.0),
+        ];
+        // Counter-clockwise seen from below (-y) when `down`.
+        let idx = if down {
+            vec![[0, 1, 2], [0, 2, 3]]
+        } else {
+            vec![[0, 2, 1], [0, 3, 2]]
+        };
+        match TriMesh::new(p, idx) {
+            Ok(m) => m,
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    fn instance(mesh: u32, material: u32) -> RenderInstance {
+        RenderInstance {
+            mesh,
+            material,
+            world_from_object: Affine3A::IDENTITY,
+            normal_from_object: Mat3A::IDENTITY,
+        }
+    }
+
+    fn emissive(e: f32) -> Material {
+        Material {
+            emission: Vec3::splat(e),
+            ..Material::default()
+        }
+    }
+
+    #[test]
+    fn only_emissive_instances_become_emitters_facing_their_winding() {
+        let meshes = vec![Arc::new(quad(1.0, true)), Arc::new(quad(0.0, false))];
+        let materials = vec![emissive(2.0), Material::default()];
+        let set = LightSet::new(&meshes, &materials, &[instance(0, 0), instance(1, 1)], &[], 1.0);
+        assert_eq!(set.emitters().len(), 2);
+        assert!(set.emitter(1, 0).is_none() && set.emitter(0, 2).is_none());
+        let Some((_, e)) = set.emitter(0, 1) else {
+            panic!("emitter")
+        };
+        assert_eq!((e.n, e.area), (-Vec3::Y, 2.0));
+        assert_eq!(LightSet::emitted(e, -Vec3::Y), Vec3::splat(2.0));
+        assert_eq!(LightSet::emitted(e, Vec3::Y), Vec3::ZERO, "one-sided");
+    }
+
+    #[test]
+    fn the_sampled_density_integrates_to_the_solid_angle() {
+        // Integrating 1/pdf over light samples estimates the solid angle the
+        // light subtends; for a 2x2 square one unit above the point, that
+        // is 4 asin(1/2) = 2 pi / 3 (a square of side 2a centred at height h
+        // subtends 4 asin(a^2 / (a^2 + h^2))).
+        let meshes = vec![Arc::new(quad(1.0, true))];
+        let set = LightSet::new(&meshes, &[emissive(1.0)], &[instance(0, 0)], &[], 1.0);
+        let mut rng = Pcg32::new(7, 0);
+        let n = 200_000;
+        let mut sum = 0.0f64;
+        for _ in 0..n {
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            let Some(s) = set.sample(Vec3::ZERO, rng.next_f32(), u) else {
+                panic!("sample")
+            };
+            sum += 1.0 / s.pdf as f64;
+            // Triangle 0 covers x > z, triangle 1 the rest.
+            let i = set.emitter(0, u32::from(s.point.x <= s.point.z)).map_or(9, |(i, _)| i);
+            let pdf = set.pdf_emitter(i, Vec3::ZERO, s.point);
+            assert!((pdf - s.pdf).abs() <= 1e-4 * s.pdf, "{pdf} vs {}", s.pdf);
+        }
+        let exact = 2.0 * std::f64::consts::PI / 3.0;
+        assert!(
+            (sum / n as f64 - exact).abs() < 0.01 * exact,
+            "{} vs {exact}",
+            sum / n as f64
+        );
+        assert!(
+            set.sample(Vec3::new(0.0, 2.0, 0.0), 0.5, Vec2::splat(0.5)).is_none(),
+            "behind"
+        );
+    }
+
+    #[test]
+    fn lights_are_picked_by_power() {
+        let meshes = vec![Arc::new(quad(1.0, true))];
+        // Emitter power pi * 4 * 1; point light 4 pi * 3: a quarter and three quarters.
+        let lights = [Light::Point {
+            position: Vec3::new(0.0, 5.0, 0.0),
+            intensity: Vec3::splat(3.0),
+        }];
+        let set = LightSet::new(&meshes, &[emissive(1.0)], &[instance(0, 0)], &lights, 1.0);
+        let s = set.sample(Vec3::ZERO, 0.9, Vec2::splat(0.5));
+        let Some(s) = s else { panic!("sample") };
+        assert!(s.delta && (s.pdf - 0.75).abs() < 1e-6 && (s.value - Vec3::splat(3.0 / 25.0)).length() < 1e-6);
+        let Some(s) = set.sample(Vec3::ZERO, 0.1, Vec2::splat(0.5)) else {
+            panic!("sample")
+        };
+        assert!(!s.delta && s.normal == -Vec3::Y);
+        // Nothing emits: nothing to sample, and no panic.
+        let dark = LightSet::new(&meshes, &[Material::default()], &[instance(0, 0)], &[], 1.0);
+        assert!(dark.is_empty() && dark.sample(Vec3::ZERO, 0.5, Vec2::ZERO).is_none());
+    }
+}

@@ -1,0 +1,236 @@
+//! The path tracer: unidirectional path tracing of the physically based
+//! BSDFs of `lucent_shading::bsdf`, with next-event estimation and multiple
+//! importance sampling.
+//!
+//! At every surface a path meets it
+//! - adds the surface's emission (one-sided, see [`crate::lights`]),
+//!   weighted against light sampling by the power heuristic (weight 1 for
+//!   camera rays and after delta lobes, which light sampling cannot
+//!   reproduce);
+//! - samples one light ([`LightSet::sample`]: a light picked by power, a
+//!   point uniform on it) and traces a shadow ray, weighted against BSDF
+//!   sampling by the power heuristic (weight 1 for point and directional
+//!   lights), unless the BSDF is purely specular;
+//! - samples the BSDF for the next direction, and once the path has
+//!   bounced [`RR_DEPTH`] times plays Russian roulette with survival
+//!   probability `min(max(throughput) eta^2, 0.95)` (`eta^2` the product of
+//!   the squared relative indices of refraction crossed, which undoes the
+//!   radiance scaling of refraction), as Mitsuba does with `rr_depth = 5`.
+//!
+//! Rays that leave the scene collect the constant background (it is not
+//! sampled as a light). `max_depth` is Mitsuba's: the longest path counted
+//! in segments from the camera, so 0 renders black, 1 shows only emitters
+//! seen directly and 2 adds direct light. Materials give their BSDF through
+//! `Material::bsdf`, with the texture colour and vertex colour as tint; the
+//! report's ambient term does not exist here.
+//!
+//! Secondary and shadow rays start at the hit point pushed off the surface
+//! along the geometric normal, to the side the new ray leaves into
+//! ([`offset_ray_origin`]); shadow rays toward an area light stop just short
+//! of the sampled point.
+
+use crate::lights::LightSet;
+use crate::{RayStats, RenderScene, RenderSettings};
+use lucent_accel::SceneHit;
+use lucent_geom::{Pcg32, Ray, Vec2, Vec3, offset_ray_origin, triangle_normal};
+use lucent_shading::Frame;
+
+/// Russian roulette starts once a path has this many bounces, as with
+/// Mitsuba's default `rr_depth = 5`.
+pub const RR_DEPTH: u32 = 5;
+/// Highest survival probability of Russian roulette.
+const RR_MAX_SURVIVAL: f32 = 0.95;
+/// Shadow rays toward an area light stop this fraction short of the sampled
+/// point, so they do not hit the light itself.
+const SHADOW_SHORTEN: f32 = 1e-4;
+
+/// A path tracer over one scene with fixed settings.
+pub struct PathTracer<'a> {
+    scene: &'a RenderScene,
+    max_depth: u32,
+}
+
+/// World-space geometry of a hit.
+struct Hit {
+    /// Hit point.
+    p: Vec3,
+    /// Unit geometric normal, as wound (not flipped toward the ray).
+    ng: Vec3,
+    /// Unit shading normal as stored (interpolated vertex normals, or `ng`).
+    ns: Vec3,
+    /// Texture coordinates, if the mesh has them.
+    uv: Option<Vec2>,
+    /// Vertex colour, if the mesh has colours.
+    color: Option<Vec3>,
+}
+
+impl<'a> PathTracer<'a> {
+    /// A path tracer for `scene` with the path length limit of `settings`.
+    pub fn new(scene: &'a RenderScene, settings: &RenderSettings) -> Self {
+        Self {
+            scene,
+            max_depth: settings.max_depth,
+        }
+    }
+
+    /// Radiance along a camera ray, one path, random numbers from `rng`.
+    pub fn trace_primary(&self, camera_ray: Ray, rng: &mut Pcg32, stats: &mut RayStats) -> Vec3 {
+        let scene = self.scene;
+        let lights = &scene.light_set;
+        let mut radiance = Vec3::ZERO;
+        if self.max_depth == 0 {
+            return radiance;
+        }
+        let mut throughput = Vec3::ONE;
+        let mut ray = camera_ray;
+        stats.primary += 1;
+        // The previous vertex, for weighting emission found by BSDF sampling.
+        let mut prev_p = ray.origin;
+        let mut prev_pdf = 0.0f32;
+        let mut prev_delta = true;
+        // Product of the squared relative indices of refraction crossed.
+        let mut eta_scale = 1.0f32;
+        let mut depth = 0u32;
+        loop {
+            let Some(sh) = scene.bvh.intersect(&ray, f32::INFINITY) else {
+                radiance += throughput * scene.environment.background;
+                break;
+            };
+            let Some(hit) = self.hit(&sh) else { break };
+
+            // Emission found by the path itself.
+            if let Some((index, emitter)) = lights.emitter(sh.instance, sh.prim) {
+                let le = LightSet::emitted(emitter, -ray.dir);
+                if le != Vec3::ZERO {
+                    let w = if prev_delta {
+                        1.0
+                    } else {
+                        power_heuristic(prev_pdf, lights.pdf_emitter(index, prev_p, hit.p))
+                    };
+                    radiance += throughput * le * w;
+                }
+            }
+            if depth + 1 >= self.max_depth {
+                break;
+            }
+            let Some(inst) = scene.instances.get(sh.instance as usize) else {
+                break;
+            };
+            let Some(material) = scene.materials.get(inst.material as usize) else {
+                break;
+            };
+            let mut tint = material.diffuse_tint(hit.uv);
+            if let Some(c) = hit.color {
+                tint *= c;
+            }
+            let bsdf = material.bsdf(tint);
+            let frame = Frame::from_normal(hit.ns);
+            let wo = frame.to_local(-ray.dir);
+
+            // Next-event estimation.
+            if !bsdf.is_delta()
+                && let Some(ls) = lights.sample(hit.p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+            {
+                let wi = frame.to_local(ls.wi);
+                let f = bsdf.eval(wo, wi);
+                if f != Vec3::ZERO {
+                    stats.shadow += 1;
+                    let side = if ls.wi.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
+                    let origin = offset_ray_origin(hit.p, side);
+                    let t_max = if ls.distance.is_finite() {
+                        (ls.point - origin).length() * (1.0 - SHADOW_SHORTEN)
+                    } else {
+                        f32::INFINITY
+                    };
+                    if !scene.bvh.occluded(&Ray::new(origin, ls.wi), t_max) {
+                        let w = if ls.delta {
+                            1.0
+                        } else {
+                            power_heuristic(ls.pdf, bsdf.pdf(wo, wi))
+                        };
+                        radiance += throughput * f * ls.value * (w / ls.pdf);
+                    }
+                }
+            }
+
+            // BSDF sampling: the next segment.
+            let u_lobe = rng.next_f32();
+            let Some(bs) = bsdf.sample(wo, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
+                break;
+            };
+            throughput *= bs.weight;
+            if throughput.max_element() <= 0.0 {
+                break;
+            }
+            let wi = frame.to_world(bs.wi);
+            if bs.wi.z * wo.z < 0.0 {
+                // Refraction scales radiance by 1 / eta^2 (eta = ior on
+                // entering); roulette undoes that scale, as Mitsuba does,
+                // so paths inside glass are not cut for it.
+                let eta = if wo.z > 0.0 { material.ior } else { material.ior.recip() };
+                if eta.is_finite() && eta > 0.0 {
+                    eta_scale *= eta * eta;
+                }
+                stats.refraction += 1;
+            } else {
+                stats.reflection += 1;
+            }
+            let out = wi.dot(hit.ng) >= 0.0;
+            ray = Ray::new(offset_ray_origin(hit.p, if out { hit.ng } else { -hit.ng }), wi);
+            prev_p = hit.p;
+            prev_pdf = bs.pdf;
+            prev_delta = bs.delta;
+            depth += 1;
+
+            // Russian roulette, once `depth` segments follow the camera ray
+            // (Mitsuba: from the sixth surface on with `rr_depth = 5`).
+            if depth >= RR_DEPTH {
+                let survive = (throughput.max_element() * eta_scale).min(RR_MAX_SURVIVAL);
+                if rng.next_f32() >= survive {
+                    break;
+                }
+                throughput /= survive;
+            }
+        }
+        radiance
+    }
+
+    /// World-space geometry of a hit; `None` for a degenerate triangle.
+    #[inline]
+    fn hit(&self, sh: &SceneHit) -> Option<Hit> {
+        let inst = self.scene.instances.get(sh.instance as usize)?;
+        let mesh = self.scene.meshes.get(inst.mesh as usize)?;
+        let idx = *mesh.indices().get(sh.prim as usize)?;
+        let bary = Vec3::new(1.0 - sh.u - sh.v, sh.u, sh.v);
+        let obj = mesh.triangle(sh.prim as usize);
+        let [a, b, c] = obj.map(|p| inst.world_from_object.transform_point3(p));
+        let p = a * bary.x + b * bary.y + c * bary.z;
+        let ng = (inst.normal_from_object * triangle_normal(obj)).try_normalize()?;
+        let ns = mesh
+            .normals()
+            .and_then(|n| {
+                let [na, nb, nc] = idx.map(|i| n[i as usize]);
+                (inst.normal_from_object * (na * bary.x + nb * bary.y + nc * bary.z)).try_normalize()
+            })
+            .unwrap_or(ng);
+        let uv = mesh.uvs().map(|uv| {
+            let [ua, ub, uc] = idx.map(|i| uv[i as usize]);
+            ua * bary.x + ub * bary.y + uc * bary.z
+        });
+        let color = mesh.colors().map(|col| {
+            let [ca, cb, cc] = idx.map(|i| col[i as usize]);
+            ca * bary.x + cb * bary.y + cc * bary.z
+        });
+        Some(Hit { p, ng, ns, uv, color })
+    }
+}
+
+/// Veach's power heuristic (beta = 2) for two one-sample strategies.
+#[inline]
+fn power_heuristic(pdf: f32, other: f32) -> f32 {
+    let (a, b) = (pdf * pdf, other * other);
+    if a + b > 0.0 && a.is_finite() { a / (a + b) } else { 1.0 }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,218 @@
+//! The path tracer checked against answers known in closed form: white
+//! furnaces (emission everywhere, or a uniform background), the meaning of
+//! `max_depth`, and direct light from point and directional lights.
+
+use super::*;
+use crate::{Film, extract, render, with_threads};
+use lucent_geom::{Affine3A, TriMesh, shapes};
+use lucent_scene::components::{Camera, Light, Material, OrbitRig};
+use lucent_scene::{Environment, Integrator, Scene};
+
+fn settings(max_depth: u32, spp: u32) -> RenderSettings {
+    RenderSettings {
+        width: 12,
+        height: 8,
+        spp,
+        max_depth,
+        integrator: Integrator::Path,
+        seed: 3,
+        ..RenderSettings::default()
+    }
+}
+
+fn dark() -> Environment {
+    Environment {
+        background: Vec3::ZERO,
+        ambient: Vec3::ZERO,
+        shadowed_ambient: false,
+    }
+}
+
+/// The unit cube turned inside out: the same faces wound the other way, so
+/// every face (and its emission) looks inward; flat normals.
+fn inward_cube() -> TriMesh {
+    let cube = shapes::cuboid();
+    let faces = cube.indices().iter().map(|&[a, b, c]| [a, c, b]).collect();
+    TriMesh::new(cube.positions().to_vec(), faces).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A closed box of diffuse `albedo` whose walls all emit `emission`, seen
+/// from inside.
+fn furnace(albedo: f32, emission: f32) -> Scene {
+    let mut scene = Scene {
+        environment: dark(),
+        ..Scene::default()
+    };
+    let mesh = scene.add_mesh("box", inward_cube());
+    let mat = scene.add_material(
+        "wall",
+        Material {
+            kd: Vec3::splat(albedo),
+            emission: Vec3::splat(emission),
+            ..Material::default()
+        },
+    );
+    scene.add_instance("box", mesh, mat, Affine3A::from_scale(Vec3::splat(4.0)));
+    let rig = OrbitRig {
+        center: Vec3::ZERO,
+        radius: 1.0,
+        theta: 0.2,
+        phi: 1.0,
+    };
+    scene.add_camera("cam", Camera { fov_y_deg: 100.0 }, rig);
+    scene
+}
+
+fn mean_and_spread(film: &Film) -> (Vec3, f32) {
+    let px = film.to_linear();
+    let n = px.len() as f32;
+    let mean = px.iter().copied().sum::<Vec3>() / n;
+    let spread = px.iter().map(|p| (*p - mean).abs().max_element()).fold(0.0, f32::max);
+    (mean, spread)
+}
+
+fn render_path(scene: &Scene, s: &RenderSettings) -> Film {
+    let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
+    render(&rs, s, &|_| {}).film
+}
+
+#[test]
+fn max_depth_counts_segments_from_the_camera() {
+    let scene = furnace(1.0, 1.0);
+    // 0: no segment at all; 1: the emitters seen directly, exactly.
+    let black = render_path(&scene, &settings(0, 2));
+    assert_eq!(mean_and_spread(&black), (Vec3::ZERO, 0.0));
+    let direct = render_path(&scene, &settings(1, 2));
+    assert_eq!(mean_and_spread(&direct), (Vec3::ONE, 0.0));
+}
+
+#[test]
+fn a_white_furnace_with_glowing_walls_collects_one_emission_per_segment() {
+    // Albedo 1 and emission 1 everywhere: a path of at most D segments sees
+    // the emission once per vertex, so every pixel converges to D exactly,
+    // whatever mix of light and BSDF sampling found it (the MIS weights and
+    // both densities must agree for that). Roulette starts at the fifth
+    // vertex, so D = 7 checks it too.
+    for (depth, spp, tol) in [(2u32, 64u32, 0.02f32), (3, 64, 0.03), (7, 256, 0.05)] {
+        let film = render_path(&furnace(1.0, 1.0), &settings(depth, spp));
+        let (mean, _) = mean_and_spread(&film);
+        let want = depth as f32;
+        assert!(
+            (mean - Vec3::splat(want)).abs().max_element() < tol * want,
+            "max_depth {depth}: mean {mean}, want {want}"
+        );
+        for p in film.to_linear() {
+            assert!(
+                (p - Vec3::splat(want)).abs().max_element() < 0.25 * want,
+                "depth {depth}: pixel {p}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_grey_furnace_converges_to_the_geometric_series() {
+    // Albedo 1/2, emission 1: L = 1 + 1/2 + 1/4 + ... = 2 with unlimited
+    // depth (64 segments here, roulette doing the rest).
+    let film = render_path(&furnace(0.5, 1.0), &settings(64, 128));
+    let (mean, _) = mean_and_spread(&film);
+    assert!((mean - Vec3::splat(2.0)).abs().max_element() < 0.02, "{mean}");
+}
+
+#[test]
+fn a_white_object_under_a_uniform_sky_disappears() {
+    // The classic furnace: albedo 1 under background 1 reflects exactly
+    // what it receives, so the whole image is 1 (flat normals: a convex
+    // object sends every bounce straight back to the sky).
+    let mut scene = Scene {
+        environment: Environment {
+            background: Vec3::ONE,
+            ..dark()
+        },
+        ..Scene::default()
+    };
+    let ball = shapes::icosphere(2);
+    let flat = TriMesh::new(ball.positions().to_vec(), ball.indices().to_vec()).unwrap_or_else(|e| panic!("{e}"));
+    let mesh = scene.add_mesh("ball", flat);
+    let white = scene.add_material(
+        "white",
+        Material {
+            kd: Vec3::ONE,
+            ..Material::default()
+        },
+    );
+    scene.add_instance("ball", mesh, white, Affine3A::IDENTITY);
+    scene.add_camera("cam", Camera { fov_y_deg: 50.0 }, OrbitRig::default());
+    let film = render_path(&scene, &settings(16, 4));
+    for p in film.to_linear() {
+        assert!((p - Vec3::ONE).abs().max_element() < 1e-5, "{p}");
+    }
+}
+
+/// A large diffuse floor (albedo `kd`) at y = 0 lit by `light`.
+fn lit_floor(light: Light, kd: f32) -> RenderScene {
+    let mut scene = Scene {
+        environment: dark(),
+        ..Scene::default()
+    };
+    let plane = scene.add_mesh("floor", shapes::plane());
+    let mat = scene.add_material(
+        "floor",
+        Material {
+            kd: Vec3::splat(kd),
+            ..Material::default()
+        },
+    );
+    scene.add_instance("floor", plane, mat, Affine3A::from_scale(Vec3::splat(100.0)));
+    scene.add_light("light", light);
+    scene.add_camera("cam", Camera::default(), OrbitRig::default());
+    extract(&scene).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn point_and_directional_lights_give_lambert_direct_light() {
+    let from = Vec3::new(0.0, 1.0, 1.0);
+    let ray = Ray::new(from, (-from).normalize());
+    let s = settings(2, 1);
+    let mut stats = RayStats::default();
+    let mut rng = Pcg32::new(1, 0);
+    // A point light of intensity 4 two units above the origin: irradiance
+    // 4 / 2^2 = 1 at the origin, times albedo / pi.
+    let rs = lit_floor(
+        Light::Point {
+            position: Vec3::new(0.0, 2.0, 0.0),
+            intensity: Vec3::splat(4.0),
+        },
+        0.5,
+    );
+    let l = PathTracer::new(&rs, &s).trace_primary(ray, &mut rng, &mut stats);
+    assert!(
+        (l - Vec3::splat(0.5 / std::f32::consts::PI)).abs().max_element() < 1e-5,
+        "{l}"
+    );
+    // A directional light at 60 degrees from the normal: irradiance cos 60 = 1/2.
+    let dir = Vec3::new(3f32.sqrt(), 1.0, 0.0).normalize();
+    let rs = lit_floor(
+        Light::Directional {
+            to_light: dir,
+            intensity: Vec3::ONE,
+        },
+        1.0,
+    );
+    let l = PathTracer::new(&rs, &s).trace_primary(ray, &mut rng, &mut stats);
+    assert!(
+        (l - Vec3::splat(0.5 / std::f32::consts::PI)).abs().max_element() < 1e-5,
+        "{l}"
+    );
+    assert!(stats.shadow >= 2);
+}
+
+#[test]
+fn one_and_two_threads_give_the_same_bytes() {
+    let scene = furnace(0.8, 1.0);
+    let s = settings(8, 3);
+    let one = with_threads(1, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
+    let two = with_threads(2, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(one, two);
+    assert_eq!(one.stats().n_non_finite, 0);
+}

@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""Helpers for xtask/mitsuba/compare.sh (run with the peer's venv, which has
+Mitsuba to read and write EXR, and numpy).
+
+  tools.py average OUT_STEM A.exr B.exr ...   mean of equal-spp renders -> OUT_STEM.exr/.png
+  tools.py blocks REF.exr TEST.exr            bias check on 8x8-block means
+  tools.py summarize bench.jsonl              medians of interleaved timings
+"""
+import json
+import statistics
+import sys
+
+import numpy as np
+
+
+def mitsuba():
+    import mitsuba as mi
+    if not mi.variant():
+        mi.set_variant("scalar_rgb")
+    return mi
+
+
+def load(path):
+    a = np.array(mitsuba().Bitmap(path), dtype=np.float64)
+    return a[..., :3]
+
+
+def average(out_stem, paths):
+    mi = mitsuba()
+    acc = sum(load(p) for p in paths) / len(paths)
+    img = np.ascontiguousarray(acc, dtype=np.float32)
+    bmp = mi.Bitmap(img, mi.Bitmap.PixelFormat.RGB)
+    bmp.write(out_stem + ".exr")
+    x = np.clip(acc, 0.0, 1.0)
+    x = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    png = np.ascontiguousarray(np.round(x * 255.0).astype(np.uint8))
+    mi.Bitmap(png, mi.Bitmap.PixelFormat.RGB).write(out_stem + ".png")
+    print("averaged %d images into %s.exr" % (len(paths), out_stem))
+
+
+def blocks(ref_path, test_path, b=8):
+    """Means over b x b blocks average the noise away (by b), so a
+    difference that stays well above the blocks' noise is bias."""
+    ref, test = load(ref_path), load(test_path)
+    h, w, _ = ref.shape
+    r = ref[: h - h % b, : w - w % b].reshape(h // b, b, w // b, b, 3).mean(axis=(1, 3))
+    t = test[: h - h % b, : w - w % b].reshape(h // b, b, w // b, b, 3).mean(axis=(1, 3))
+    d = t - r
+    print(json.dumps({
+        "block": b,
+        "mean_ref": [round(float(x), 5) for x in ref.reshape(-1, 3).mean(0)],
+        "mean_test": [round(float(x), 5) for x in test.reshape(-1, 3).mean(0)],
+        "mean_rel_diff": [round(float(x), 5) for x in
+                          (test.reshape(-1, 3).mean(0) / ref.reshape(-1, 3).mean(0) - 1)],
+        "block_rmse": round(float(np.sqrt(np.mean(d ** 2))), 5),
+        "block_mean_diff": round(float(d.mean()), 6),
+        "worst_blocks": [
+            {"row": int(i // d.shape[1]), "col": int(i % d.shape[1]),
+             "ref": [round(float(x), 4) for x in r.reshape(-1, 3)[i]],
+             "test": [round(float(x), 4) for x in t.reshape(-1, 3)[i]]}
+            for i in np.argsort(-np.abs(d).max(axis=2).ravel())[:5]],
+    }))
+
+
+def summarize(path):
+    rows = [json.loads(l) for l in open(path) if l.strip()]
+    med = {}
+    for who in ("lucent", "mitsuba"):
+        vals = [r["render_s"] for r in rows if r["who"] == who]
+        med[who] = statistics.median(vals)
+        spp = rows[0]["spp"]
+        print("%-8s median %.3f s for %d spp = %.4f s/spp over %d rounds: %s" % (
+            who, med[who], spp, med[who] / spp, len(vals), ", ".join("%.3f" % v for v in vals)))
+    print("Mitsuba / Lucent time ratio (above 1: Lucent faster): %.2f" % (med["mitsuba"] / med["lucent"]))
+    print("loads: " + "; ".join("%s %s" % (r["who"], r["load"]) for r in rows))
+
+
+if __name__ == "__main__":
+    cmd = sys.argv[1]
+    if cmd == "average":
+        average(sys.argv[2], sys.argv[3:])
+    elif cmd == "blocks":
+        blocks(sys.argv[2], sys.argv[3])
+    elif cmd == "summarize":
+        summarize(sys.argv[2])
+    else:
+        sys.exit(__doc__)
