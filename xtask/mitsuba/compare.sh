@@ -7,6 +7,7 @@
 #                                                      (default "16,64,256", seed 0)
 #   xtask/mitsuba/compare.sh converge CHUNKS SPP      CHUNKS renders of SPP samples, seeds
 #                                                      1000, 1001, ..., averaged, then compared
+#                                                      (chunks already in OUT are reused; under nice)
 #   xtask/mitsuba/compare.sh bench [ROUNDS] [SPP]     interleaved timings, Lucent then Mitsuba
 #                                                      per round (default 5 rounds of 64 spp)
 #   xtask/mitsuba/compare.sh blocks STEM              bias check: 8x8-block means of STEM.exr
@@ -16,6 +17,7 @@
 #      requirements.txt: python3 -m venv /tmp/mts && /tmp/mts/bin/pip install -r
 #      ../shared/peers/mitsuba/requirements.txt; llvm_ad_rgb also needs libllvm19)
 #      THREADS=0 (Lucent worker threads; 0 = one per CPU)
+#      LUCENT=path/to/lucent (a binary to use instead of building target/release/lucent)
 #
 # Lucent renders res/scenes/cornell-mitsuba.toml at 256x256 with max depth 16
 # (Mitsuba's meaning), writing linear EXR + PNG; the peer's `cornell.py
@@ -31,8 +33,10 @@ THREADS=${THREADS:-0}
 SCENE=$ROOT/res/scenes/cornell-mitsuba.toml
 HELP="$ROOT/xtask/mitsuba/tools.py"
 mkdir -p "$OUT"
-cargo build --release -q -p lucent --manifest-path "$ROOT/Cargo.toml"
-LUCENT=$ROOT/target/release/lucent
+if [[ -z ${LUCENT:-} ]]; then
+  cargo build --release -q -p lucent --manifest-path "$ROOT/Cargo.toml"
+  LUCENT=$ROOT/target/release/lucent
+fi
 lock() { flock /tmp/lucent-bench.lock "$@"; }
 load() { cut -d' ' -f1-3 /proc/loadavg; }
 thread_args=()

@@ -3,6 +3,7 @@
 //! This is the only file of the renderer that names hecs. Everything after
 //! it addresses meshes, materials and instances by `u32` index.
 
+use crate::flat::{FlatBvh, MAX_FLAT_TRIANGLES};
 use crate::lights::LightSet;
 use lucent_accel::{BuildParams, Instance, MeshBvh, SceneBvh};
 use lucent_geom::{Affine3A, Mat3A, TriMesh};
@@ -65,6 +66,10 @@ pub struct RenderScene {
     pub features: SceneFeatures,
     /// Emissive triangles and lights, as the path tracer samples them.
     pub light_set: LightSet,
+    /// Every instance's triangles in one world-space BVH, which the path
+    /// tracer queries instead of `bvh` (absent for heavily instanced or
+    /// huge scenes; see [`FlatBvh::build`]).
+    pub flat_bvh: Option<FlatBvh>,
 }
 
 /// Why a scene could not be extracted.
@@ -161,6 +166,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         .map(|m| Arc::new(MeshBvh::build(m, &params)))
         .collect();
     let bvh = SceneBvh::build(blas, bvh_instances, &params);
+    let flat_bvh = FlatBvh::build(&meshes, &instances, &params, MAX_FLAT_TRIANGLES);
 
     let mut lights: Vec<(u64, Light)> = world
         .query::<(Entity, &Light)>()
@@ -193,6 +199,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         bvh,
         features,
         light_set,
+        flat_bvh,
     })
 }
 

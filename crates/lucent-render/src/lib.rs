@@ -34,6 +34,7 @@
 mod camera;
 mod extract;
 mod film;
+pub mod flat;
 pub mod lights;
 pub mod path;
 mod render;

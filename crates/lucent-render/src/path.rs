@@ -33,7 +33,7 @@ use crate::lights::LightSet;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, offset_ray_origin, triangle_normal};
-use lucent_shading::Frame;
+use lucent_shading::{Bsdf, Frame};
 
 /// Russian roulette starts once a path has this many bounces, as with
 /// Mitsuba's default `rr_depth = 5`.
@@ -48,6 +48,9 @@ const SHADOW_SHORTEN: f32 = 1e-4;
 pub struct PathTracer<'a> {
     scene: &'a RenderScene,
     max_depth: u32,
+    /// Per material, its BSDF when nothing varies over the surface (no
+    /// texture): built once per render, not at every hit.
+    plain_bsdfs: Vec<Option<Bsdf>>,
 }
 
 /// World-space geometry of a hit.
@@ -67,9 +70,15 @@ struct Hit {
 impl<'a> PathTracer<'a> {
     /// A path tracer for `scene` with the path length limit of `settings`.
     pub fn new(scene: &'a RenderScene, settings: &RenderSettings) -> Self {
+        let plain_bsdfs = scene
+            .materials
+            .iter()
+            .map(|m| m.diffuse_map.is_none().then(|| m.bsdf(Vec3::ONE)))
+            .collect();
         Self {
             scene,
             max_depth: settings.max_depth,
+            plain_bsdfs,
         }
     }
 
@@ -92,7 +101,7 @@ impl<'a> PathTracer<'a> {
         let mut eta_scale = 1.0f32;
         let mut depth = 0u32;
         loop {
-            let Some(sh) = scene.bvh.intersect(&ray, f32::INFINITY) else {
+            let Some(sh) = self.intersect(&ray) else {
                 radiance += throughput * scene.environment.background;
                 break;
             };
@@ -119,11 +128,16 @@ impl<'a> PathTracer<'a> {
             let Some(material) = scene.materials.get(inst.material as usize) else {
                 break;
             };
-            let mut tint = material.diffuse_tint(hit.uv);
-            if let Some(c) = hit.color {
-                tint *= c;
-            }
-            let bsdf = material.bsdf(tint);
+            let bsdf = match (self.plain_bsdfs.get(inst.material as usize), hit.color) {
+                (Some(Some(bsdf)), None) => *bsdf,
+                _ => {
+                    let mut tint = material.diffuse_tint(hit.uv);
+                    if let Some(c) = hit.color {
+                        tint *= c;
+                    }
+                    material.bsdf(tint)
+                }
+            };
             let frame = Frame::from_normal(hit.ns);
             let wo = frame.to_local(-ray.dir);
 
@@ -142,7 +156,7 @@ impl<'a> PathTracer<'a> {
                     } else {
                         f32::INFINITY
                     };
-                    if !scene.bvh.occluded(&Ray::new(origin, ls.wi), t_max) {
+                    if !self.occluded(&Ray::new(origin, ls.wi), t_max) {
                         let w = if ls.delta {
                             1.0
                         } else {
@@ -193,6 +207,24 @@ impl<'a> PathTracer<'a> {
             }
         }
         radiance
+    }
+
+    /// Closest hit, through the flat tree when the scene has one.
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
+        match &self.scene.flat_bvh {
+            Some(flat) => flat.intersect(ray, f32::INFINITY),
+            None => self.scene.bvh.intersect(ray, f32::INFINITY),
+        }
+    }
+
+    /// Whether anything blocks `ray` before `t_max`.
+    #[inline]
+    fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        match &self.scene.flat_bvh {
+            Some(flat) => flat.occluded(ray, t_max),
+            None => self.scene.bvh.occluded(ray, t_max),
+        }
     }
 
     /// World-space geometry of a hit; `None` for a degenerate triangle.
