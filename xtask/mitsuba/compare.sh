@@ -42,9 +42,13 @@ load() { cut -d' ' -f1-3 /proc/loadavg; }
 thread_args=()
 [[ $THREADS != 0 ]] && thread_args=(--threads "$THREADS")
 
-# render STEM SPP SEED: Lucent's render of the Cornell box, EXR + PNG.
+# render [PREFIX...] -- STEM SPP SEED: Lucent's render of the Cornell box, EXR + PNG,
+# run under PREFIX (e.g. `lock` or `nice`).
 render() {
-  "$LUCENT" render "$SCENE" --size 256x256 --max-depth 16 --integrator path \
+  local prefix=()
+  while [[ $1 != -- ]]; do prefix+=("$1"); shift; done
+  shift
+  "${prefix[@]}" "$LUCENT" render "$SCENE" --size 256x256 --max-depth 16 --integrator path \
     --spp "$2" --seed "$3" --exr "$1.exr" -o "$1.png" "${thread_args[@]}"
 }
 compare() { (cd "$PEER" && "$PY" cornell.py compare --ref "$PEER/out/ref" "$@"); }
@@ -57,7 +61,7 @@ case $cmd in
     for spp in ${SPPS//,/ }; do
       stem=$OUT/lucent_spp$(printf %05d "$spp")
       echo "load $(load)"
-      lock render "$stem" "$spp" "$SEED"
+      render flock /tmp/lucent-bench.lock -- "$stem" "$spp" "$SEED"
       compare "$stem"
     done
     ;;
@@ -69,7 +73,7 @@ case $cmd in
       stem=$OUT/chunk_${SPP}_$i
       stems+=("$stem.exr")
       [[ -f $stem.exr ]] && continue
-      nice render "$stem" "$SPP" $((1000 + i))
+      render nice -n 19 -- "$stem" "$SPP" $((1000 + i))
     done
     total=$((CHUNKS * SPP))
     avg=$OUT/lucent_converged_$total
@@ -87,7 +91,7 @@ case $cmd in
     : >"$RES"
     for round in $(seq "$ROUNDS"); do
       before=$(load)
-      line=$(lock render "$OUT/bench_lucent" "$SPP" "$round")
+      line=$(render flock /tmp/lucent-bench.lock -- "$OUT/bench_lucent" "$SPP" "$round")
       s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
       echo "{\"round\":$round,\"who\":\"lucent\",\"spp\":$SPP,\"render_s\":$s,\"load\":\"$before\"}" | tee -a "$RES"
       before=$(load)

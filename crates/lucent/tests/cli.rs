@@ -159,7 +159,7 @@ fn help_lists_the_viewer_controls() {
         "mouse drag",
         "wheel",
         "F1-F4 or 1-4",
-        "only Whitted exists",
+        "switch integrator",
         "screenshot",
         "Esc",
         "--stats",

@@ -20,8 +20,8 @@ use clap::Args;
 use input::{FrameInput, ScriptedInput, WindowInput};
 use lucent_nav::{Buttons, HeldKeys, OrbitController};
 use lucent_render::{RenderSettings, extract};
-use lucent_scene::Shading;
 use lucent_scene::components::OrbitRig;
+use lucent_scene::{Integrator, Shading};
 use minifb::{Window, WindowOptions};
 use quality::{DEFAULT_PRESET, PRESETS};
 use stats::{FrameClock, FrameReport};
@@ -39,7 +39,7 @@ pub const CONTROLS: &str = "Controls:
   R                   reset the view
   F1-F4 or 1-4        quality preset: draft, interactive (the default), quality, final
   G                   switch Gouraud / per-pixel Phong shading
-  I                   switch integrator (only Whitted exists so far, so I just says so)
+  I                   switch integrator: the report's Whitted model / path tracing
   P                   save a screenshot (lucent-<unix ms>.png in the current directory)
   Esc                 quit
 
@@ -204,9 +204,6 @@ impl App {
         if input.quit {
             return Ok(false);
         }
-        if input.toggle_integrator {
-            eprintln!("I: only one integrator (Whitted) is available; nothing to switch");
-        }
         let (w, h) = self.size;
         if input.screenshot {
             save_in_background(self.shown.pixels.clone(), w, h, screenshot_name());
@@ -308,7 +305,14 @@ impl ViewState {
 
     fn apply_preset(&mut self) {
         let p = &PRESETS[self.preset];
-        self.settings.max_depth = p.max_depth.map_or(self.scene_depth, |d| d.min(self.scene_depth));
+        // A preset's depth cap is a Whitted recursion depth; the path
+        // tracer counts segments from the camera, two more for the same
+        // chains (the camera ray and the light segment).
+        let cap = match self.settings.integrator {
+            Integrator::Whitted => p.max_depth,
+            Integrator::Path => p.max_depth.map(|d| d + 2),
+        };
+        self.settings.max_depth = cap.map_or(self.scene_depth, |d| d.min(self.scene_depth));
     }
 
     /// Applies one frame of input; returns whether the request changed.
@@ -324,6 +328,14 @@ impl ViewState {
                 Shading::Gouraud => Shading::Phong,
                 Shading::Phong => Shading::Gouraud,
             };
+            changed_settings = true;
+        }
+        if input.toggle_integrator {
+            self.settings.integrator = match self.settings.integrator {
+                Integrator::Whitted => Integrator::Path,
+                Integrator::Path => Integrator::Whitted,
+            };
+            self.apply_preset();
             changed_settings = true;
         }
         let moved = self.controller.update(&mut self.rig, &input.nav);
@@ -416,7 +428,10 @@ impl Shown {
             frame.samples,
             frame.scale(self.width),
             PRESETS[view.preset].name,
-            view.settings.shading.name(),
+            match view.settings.integrator {
+                Integrator::Whitted => view.settings.shading.name(),
+                Integrator::Path => "path",
+            },
         )
     }
 }

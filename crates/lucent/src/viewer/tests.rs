@@ -112,12 +112,22 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     };
     assert!(v.apply(&quality, t0));
     assert_eq!(v.request().settings.max_depth, 5);
-    // The integrator key changes nothing: there is only one integrator.
+    // The integrator key switches to the path tracer and back; the draft
+    // preset's depth cap counts two more segments for the path tracer.
     let integrator = FrameInput {
         toggle_integrator: true,
         ..FrameInput::default()
     };
-    assert!(!v.apply(&integrator, t0));
+    assert!(v.apply(&integrator, t0));
+    assert_eq!(v.request().settings.integrator, Integrator::Path);
+    assert_eq!(v.request().generation, g + 4);
+    assert!(v.apply(&draft, t0));
+    assert_eq!(v.request().settings.max_depth, 3);
+    assert!(v.apply(&integrator, t0));
+    assert_eq!(
+        (v.request().settings.integrator, v.request().settings.max_depth),
+        (Integrator::Whitted, 1)
+    );
 }
 
 #[test]
