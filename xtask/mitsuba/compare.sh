@@ -10,6 +10,9 @@
 #                                                      (chunks already in OUT are reused; under nice)
 #   xtask/mitsuba/compare.sh bench [ROUNDS] [SPP]     interleaved timings, Lucent then Mitsuba
 #                                                      per round (default 5 rounds of 64 spp)
+#   xtask/mitsuba/compare.sh seeds [SPP] [SEEDS]      Lucent (seed s) and Mitsuba (seed 1000 s) at SPP
+#                                                      for each seed, alternately; both compared
+#                                                      (default 64 spp, seeds "11,12,13,14")
 #   xtask/mitsuba/compare.sh blocks STEM              bias check: 8x8-block means of STEM.exr
 #                                                      against the reference's
 #
@@ -81,6 +84,18 @@ case $cmd in
     compare "$avg"
     "$PY" "$HELP" blocks "$PEER/out/ref.exr" "$avg.exr"
     ;;
+  seeds)
+    SPP=${2:-64}
+    SEEDS=${3:-11,12,13,14}
+    stems=()
+    for s in ${SEEDS//,/ }; do
+      render flock /tmp/lucent-bench.lock -- "$OUT/seed_lucent_$s" "$SPP" "$s" >/dev/null
+      (cd "$PEER" && lock "$PY" cornell.py render --variant llvm_ad_rgb --spp "$SPP" --seed $((s * 1000)) \
+        --out "$OUT/seed_mitsuba_$s" >/dev/null 2>&1)
+      stems+=("$OUT/seed_lucent_$s" "$OUT/seed_mitsuba_$s")
+    done
+    compare "${stems[@]}"
+    ;;
   blocks)
     "$PY" "$HELP" blocks "$PEER/out/ref.exr" "${2:?stem}.exr"
     ;;
@@ -105,7 +120,7 @@ case $cmd in
     compare "$OUT/bench_lucent" "$OUT/bench_mitsuba"
     ;;
   *)
-    echo "usage: $0 errors|converge|bench|blocks ..." >&2
+    echo "usage: $0 errors|converge|bench|seeds|blocks ..." >&2
     exit 2
     ;;
 esac
