@@ -49,6 +49,57 @@ fn render_error(name: &str, scene_text: &str) -> String {
 }
 
 #[test]
+fn path_traces_the_cornell_box_to_exr_and_an_exposed_png() {
+    let dir = scratch("cornell");
+    let (exr, png, bright) = (dir.join("c.exr"), dir.join("c.png"), dir.join("bright.png"));
+    let run = |extra: &[&str]| {
+        let out = lucent()
+            .args([
+                "render",
+                "res/scenes/cornell-mitsuba.toml",
+                "--size",
+                "24x24",
+                "--spp",
+                "2",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let summary = run(&["--exr", exr.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    assert!(summary.contains("path max_depth 16"), "{summary}");
+    let (w, h, rgb) = lucent_assets::decode_exr(&std::fs::read(&exr).unwrap(), &exr).unwrap();
+    assert_eq!((w, h, rgb.len()), (24, 24, 24 * 24 * 3));
+    assert!(rgb.iter().all(|v| v.is_finite() && *v >= 0.0));
+    // The light (radiance 15) is in the picture, unclamped in the EXR.
+    assert!(rgb.iter().any(|v| *v > 10.0), "no light in the EXR");
+    // The same render two stops brighter: no PNG value darker.
+    run(&["--exposure", "2", "-o", bright.to_str().unwrap()]);
+    let a = lucent_assets::texture_from_bytes(&std::fs::read(&png).unwrap(), &png).unwrap();
+    let b = lucent_assets::texture_from_bytes(&std::fs::read(&bright).unwrap(), &bright).unwrap();
+    let (mut brighter, mut darker) = (0, 0);
+    for y in 0..24 {
+        for x in 0..24 {
+            let (pa, pb) = (a.texel(x, y), b.texel(x, y));
+            darker += usize::from(pb.cmplt(pa).any());
+            brighter += usize::from(pb.cmpgt(pa).any());
+        }
+    }
+    assert_eq!(darker, 0);
+    assert!(brighter > 24 * 24 / 2, "{brighter}");
+    // --exr alone is enough; a wrong extension is an error.
+    run(&["--exr", exr.to_str().unwrap(), "--integrator", "whitted"]);
+    let out = lucent()
+        .args(["render", "res/scenes/cornell-mitsuba.toml", "--exr", "x.png"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("must end in .exr"), "{}", stderr(&out));
+}
+
+#[test]
 fn renders_the_seed_scene_to_png() {
     let dir = scratch("seed");
     let png = dir.join("seed.png");
