@@ -223,13 +223,14 @@ impl Loader<'_> {
     }
 
     fn spawn_lights(&mut self) {
-        // Emissive materials light the scene for the path tracer.
+        // Emissive materials (the scene file's, or an MTL's `Ke`) light the
+        // scene for the path tracer.
         let emissive = self
-            .file
-            .desc
-            .materials
-            .values()
-            .any(|m| m.emission.0.max_element() > 0.0);
+            .scene
+            .world
+            .query::<&Material>()
+            .iter()
+            .any(|m| m.emission.max_element() > 0.0);
         if self.file.desc.lights.is_empty() && !emissive {
             self.report
                 .warn(&self.file.path, "no lights: only ambient light will show");
