@@ -98,7 +98,7 @@ pub(super) fn phong_sample(wo: Vec3, u: Vec2, n: f32) -> Option<Vec3> {
 /// GGX (Trowbridge-Reitz) normal distribution for half vector `h` (upper
 /// hemisphere), isotropic roughness `alpha`.
 #[inline]
-fn ggx_d(h: Vec3, alpha: f32) -> f32 {
+pub(super) fn ggx_d(h: Vec3, alpha: f32) -> f32 {
     let a2 = alpha * alpha;
     let t = (h.x * h.x + h.y * h.y) / a2 + h.z * h.z;
     1.0 / (PI * a2 * t * t)

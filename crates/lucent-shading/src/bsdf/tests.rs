@@ -300,3 +300,42 @@ fn ggx_sample_weight_is_g2_over_g1() {
         }
     }
 }
+
+#[test]
+fn ggx_distribution_and_visible_normals_are_normalised() {
+    // Projected microfacet area is the macro-surface: integral of
+    // D(h) h.z over the hemisphere = 1; and the visible normals of a
+    // direction w project to its footprint: integral of G1(w) max(0, w.h)
+    // D(h) = w.z. Midpoint rule in (cos theta, phi), with the cosine grid
+    // packed toward the pole where narrow lobes live.
+    for alpha in [0.1f32, 0.3, 0.7, 1.0] {
+        let (nu, nphi) = (4000, 64);
+        let mut d_sum = 0.0f64;
+        let ws = [dir(0.0), dir(50.0), dir(85.0)];
+        let mut vis = [0.0f64; 3];
+        for i in 0..nu {
+            // z = 1 - s^2 packs samples near z = 1; dz = 2 s ds.
+            let s = (i as f64 + 0.5) / nu as f64;
+            let z = 1.0 - s * s;
+            let dz = 2.0 * s / nu as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            for j in 0..nphi {
+                let phi = (j as f64 + 0.5) / nphi as f64 * std::f64::consts::TAU;
+                let h = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                let d = f64::from(lobes::ggx_d(h, alpha));
+                let dw = dz * std::f64::consts::TAU / nphi as f64;
+                d_sum += d * z * dw;
+                for (v, w) in vis.iter_mut().zip(ws) {
+                    *v += f64::from(lobes::ggx_g1(w, alpha)) * f64::from(w.dot(h).max(0.0)) * d * dw;
+                }
+            }
+        }
+        assert!((d_sum - 1.0).abs() < 2e-3, "alpha {alpha}: {d_sum}");
+        for (v, w) in vis.iter().zip(ws) {
+            assert!(
+                (v - f64::from(w.z)).abs() < 2e-3 * f64::from(w.z).max(0.1),
+                "alpha {alpha}, {w}: {v}"
+            );
+        }
+    }
+}
