@@ -83,6 +83,7 @@ case $cmd in
     "$PY" "$HELP" average "$avg" "${stems[@]}"
     compare "$avg"
     "$PY" "$HELP" blocks "$PEER/out/ref.exr" "$avg.exr"
+    CHUNK_SPP=$SPP "$PY" "$HELP" noise "$PEER/out/ref.exr" 8192 "${stems[@]}"
     ;;
   seeds)
     SPP=${2:-64}

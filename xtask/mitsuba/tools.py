@@ -5,6 +5,11 @@ Mitsuba to read and write EXR, and numpy).
   tools.py average OUT_STEM A.exr B.exr ...   mean of equal-spp renders -> OUT_STEM.exr/.png
   tools.py blocks REF.exr TEST.exr            bias check on 8x8-block means
   tools.py summarize bench.jsonl              medians of interleaved timings
+  tools.py noise REF.exr REF_SPP CHUNK.exr ...  error of the chunks' mean against what noise
+                                              explains: each chunk (equal spp, independent
+                                              seeds) gives every pixel's variance, hence the
+                                              expected squared error of the mean and of a
+                                              REF_SPP reference from the same estimator
 """
 import json
 import statistics
@@ -62,6 +67,38 @@ def blocks(ref_path, test_path, b=8):
     }))
 
 
+def noise(ref_path, ref_spp, paths, b=32):
+    """Squared error of the mean of equal-spp chunks against the reference,
+    split into what the two images' noise explains and the excess, per
+    b x b block. The chunks' spp comes from CHUNK_SPP in the environment
+    (default 1024); the reference is taken to have the chunks' per-sample
+    variance (the same estimator) at REF_SPP samples."""
+    import os
+    chunk_spp = int(os.environ.get("CHUNK_SPP", "1024"))
+    ref = load(ref_path)
+    ch = np.stack([load(p) for p in paths])
+    k = len(paths)
+    avg = ch.mean(0)
+    pv = ch.var(0, ddof=1)
+    ours = pv / k
+    theirs = pv * chunk_spp / ref_spp
+    err2 = (avg - ref) ** 2
+    n = err2.size
+    print(json.dumps({
+        "chunks": k, "spp": k * chunk_spp,
+        "rmse": round(float(np.sqrt(err2.mean())), 5),
+        "noise_ours": round(float(np.sqrt(ours.mean())), 5),
+        "noise_ref_predicted": round(float(np.sqrt(theirs.mean())), 5),
+        "rmse_explained_by_noise": round(float(np.sqrt((ours + theirs).mean())), 5),
+        "excess_mse": float((err2 - ours - theirs).sum() / n),
+    }))
+    h, w, _ = ref.shape
+    ex = (err2 - ours - theirs).mean(axis=2)[: h - h % b, : w - w % b]
+    m = ex.reshape(h // b, b, w // b, b).mean(axis=(1, 3))
+    print("excess squared error per %dx%d block, x1e6:" % (b, b))
+    print(np.array2string(m * 1e6, precision=0, max_line_width=200, suppress_small=True))
+
+
 def summarize(path):
     rows = [json.loads(l) for l in open(path) if l.strip()]
     med = {}
@@ -81,6 +118,8 @@ if __name__ == "__main__":
         average(sys.argv[2], sys.argv[3:])
     elif cmd == "blocks":
         blocks(sys.argv[2], sys.argv[3])
+    elif cmd == "noise":
+        noise(sys.argv[2], int(sys.argv[3]), sys.argv[4:])
     elif cmd == "summarize":
         summarize(sys.argv[2])
     else:
