@@ -21,8 +21,9 @@ use lucent_geom::{Affine3A, Mat3A, Vec3, Vec3A};
 /// Elevation limit: the rig keeps `|theta|` at most this far from the
 /// horizon (89.9 degrees), so the frame never degenerates at the poles.
 pub const THETA_LIMIT: f32 = 89.9 * std::f32::consts::PI / 180.0;
-/// Smallest orbit radius.
-pub const MIN_RADIUS: f32 = 1e-4;
+/// Smallest orbit radius: small enough to frame a scene of 1e-6 units
+/// (1e-4, the earlier limit, pulled such a camera far out of its scene).
+pub const MIN_RADIUS: f32 = 1e-9;
 /// Largest orbit radius.
 pub const MAX_RADIUS: f32 = 1e7;
 
