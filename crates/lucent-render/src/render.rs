@@ -163,7 +163,7 @@ fn trace_rows(
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> RayStats {
-    let camera = PinholeCamera::new(&scene.camera, &scene.rig, film.width(), film.height());
+    let camera = PinholeCamera::new(&scene.camera, &scene.render_rig(), film.width(), film.height());
     let tracer = Whitted::new(scene, settings);
     let width = film.width() as usize;
     let seed = settings.seed;
