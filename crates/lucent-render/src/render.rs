@@ -186,7 +186,7 @@ fn trace_rows(
                         (rng.next_f32(), rng.next_f32())
                     };
                     let ray = camera.ray(col as f32 + jx, row as f32 + jy);
-                    *px += tracer.trace_primary(ray, &mut stats);
+                    *px += tracer.trace_primary(ray, &mut stats).as_dvec3();
                 }
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
