@@ -1,0 +1,272 @@
+//! The extremes suite, end to end (issue 8): whole scenes rendered at scales
+//! from 1e-6 to 1e6 and far from the origin, cameras at the edges of their
+//! ranges, and long accumulations. Each case prints its figure on stderr
+//! (`cargo test -p lucent-tests --test extremes -- --nocapture`) and asserts
+//! its pass condition. `cargo xtask extremes` runs the same tests in a
+//! release build with `LUCENT_EXTREMES_FULL=1`, which turns on the sizes too
+//! slow for the normal suite (a 16384-pixel-wide image, 1e6 samples per
+//! pixel). The guarantees are written up in docs/robustness.md.
+
+use lucent_geom::{Affine3A, Vec3, shapes};
+use lucent_render::{Film, RenderSettings, Shading, extract, render};
+use lucent_scene::Scene;
+use lucent_scene::components::{Camera, Light, Material, OrbitRig, Parent, Transform};
+use lucent_tests::load_repo_scene;
+
+/// Whether the slow sizes are on (`cargo xtask extremes`).
+fn full() -> bool {
+    std::env::var_os("LUCENT_EXTREMES_FULL").is_some()
+}
+
+/// Places the whole scene by `world_from_old` (a uniform scale and a
+/// translation): every root transform, every point light and the camera, so
+/// the picture should not change.
+fn place(scene: &mut Scene, scale: f32, translate: Vec3) {
+    let m = Affine3A::from_translation(translate) * Affine3A::from_scale(Vec3::splat(scale));
+    for (t, parent) in scene.world.query_mut::<(&mut Transform, Option<&Parent>)>() {
+        if parent.is_none() {
+            t.0 = m * t.0;
+        }
+    }
+    for light in scene.world.query_mut::<&mut Light>() {
+        if let Light::Point { position, intensity } = light {
+            *position = m.transform_point3(*position);
+            // Intensity falls off with the squared distance.
+            *intensity *= scale * scale;
+        }
+    }
+    if let Some(mut rig) = scene.camera_rig_mut() {
+        rig.center = m.transform_point3(rig.center);
+        rig.radius *= scale;
+    }
+}
+
+/// How far apart two images of one size are.
+#[derive(Clone, Copy, Debug)]
+struct ImageError {
+    /// Mean absolute difference of 8-bit sRGB channels, in levels.
+    mean_levels: f64,
+    /// Fraction of pixels with some channel off by more than 8 levels.
+    fraction_off: f64,
+}
+
+fn image_error(a: &Film, b: &Film) -> ImageError {
+    assert_eq!((a.width(), a.height()), (b.width(), b.height()));
+    let (a, b) = (a.to_srgb8(), b.to_srgb8());
+    let sum: u64 = a.iter().zip(&b).map(|(x, y)| u64::from(x.abs_diff(*y))).sum();
+    let n_off = a
+        .chunks(3)
+        .zip(b.chunks(3))
+        .filter(|(p, q)| p.iter().zip(*q).any(|(x, y)| x.abs_diff(*y) > 8))
+        .count();
+    ImageError {
+        mean_levels: sum as f64 / a.len().max(1) as f64,
+        fraction_off: n_off as f64 / (a.len() / 3).max(1) as f64,
+    }
+}
+
+fn render_film(scene: &Scene, settings: &RenderSettings) -> Film {
+    let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
+    render(&rs, settings, &|_| {}).film
+}
+
+/// A closed mesh (an icosphere) resting on a floor board, lit from the side
+/// so it casts a long shadow and shows its terminator.
+fn sphere_on_floor() -> Scene {
+    let mut scene = Scene::default();
+    let ball = scene.add_mesh("ball", shapes::icosphere(4));
+    let cube = scene.add_mesh("cube", shapes::cuboid());
+    let white = scene.add_material(
+        "white",
+        Material {
+            kd: Vec3::splat(0.8),
+            ks: Vec3::splat(0.3),
+            shininess: 30.0,
+            ..Material::default()
+        },
+    );
+    let floor = scene.add_material(
+        "floor",
+        Material {
+            kd: Vec3::new(0.5, 0.4, 0.3),
+            kr: Vec3::splat(0.3),
+            ..Material::default()
+        },
+    );
+    scene.add_instance(
+        "ball",
+        ball,
+        white,
+        Affine3A::from_translation(Vec3::new(0.0, 1.0, 0.0)),
+    );
+    scene.add_instance(
+        "floor",
+        cube,
+        floor,
+        Affine3A::from_scale_rotation_translation(
+            Vec3::new(8.0, 0.1, 8.0),
+            lucent_geom::Quat::IDENTITY,
+            Vec3::new(0.0, -0.05, 0.0),
+        ),
+    );
+    scene.add_light(
+        "sun",
+        Light::Directional {
+            to_light: Vec3::new(0.6, 0.5, 0.3).normalize(),
+            intensity: Vec3::ONE,
+        },
+    );
+    scene.add_camera(
+        "cam",
+        Camera { fov_y_deg: 45.0 },
+        OrbitRig {
+            center: Vec3::new(0.0, 0.8, 0.0),
+            radius: 5.0,
+            theta: 0.35,
+            phi: 1.2,
+        },
+    );
+    scene
+}
+
+/// One placement of the scale case and what it measured.
+#[derive(Clone, Copy, Debug)]
+struct ScaleRow {
+    scale: f32,
+    /// Translation in units of the scene's own size (times `scale` in world units).
+    offset: f32,
+    /// NaN or infinite pixels.
+    n_non_finite: usize,
+    /// Against the render at unit scale at the origin.
+    vs_unit: ImageError,
+    /// Against the same placed scene moved back to the origin (its
+    /// coordinates keep the rounding they got far away), so only the
+    /// renderer's own error far from the origin is left.
+    vs_rounded_at_origin: ImageError,
+}
+
+/// Renders `make()` at scales 1e-6 to 1e6, each at the origin and 1e3 and
+/// 1e6 of its own sizes away from it, and compares with unit scale.
+fn scale_case(name: &str, make: impl Fn() -> Scene, settings: RenderSettings) -> Vec<ScaleRow> {
+    let reference = render_film(&make(), &settings);
+    assert_eq!(reference.stats().n_non_finite, 0);
+    let mut rows = Vec::new();
+    for scale in [1e-6f32, 1e-3, 1.0, 1e3, 1e6] {
+        for offset in [0.0f32, 1e3, 1e6] {
+            let translate = Vec3::new(1.0, -1.0, 1.0) * offset * scale;
+            let mut scene = make();
+            place(&mut scene, scale, translate);
+            let film = render_film(&scene, &settings);
+            // Moving back by exactly -translate keeps the rounding the
+            // coordinates got (the subtraction of nearby floats is exact).
+            place(&mut scene, 1.0, -translate);
+            let rounded = render_film(&scene, &settings);
+            let row = ScaleRow {
+                scale,
+                offset,
+                n_non_finite: film.stats().n_non_finite,
+                vs_unit: image_error(&reference, &film),
+                vs_rounded_at_origin: image_error(&rounded, &film),
+            };
+            eprintln!(
+                "scale {name}: scale {scale:e}, {offset:e} sizes from the origin: {} NaN/Inf pixels; \
+                 vs unit scale {:.3} levels mean, {:.3}% pixels off by > 8; \
+                 vs the same rounded scene at the origin {:.3} levels, {:.3}%",
+                row.n_non_finite,
+                row.vs_unit.mean_levels,
+                100.0 * row.vs_unit.fraction_off,
+                row.vs_rounded_at_origin.mean_levels,
+                100.0 * row.vs_rounded_at_origin.fraction_off,
+            );
+            rows.push(row);
+        }
+    }
+    rows
+}
+
+/// The scale case's pass conditions: no NaN anywhere; the same picture as at
+/// unit scale (mean error under 0.5 of 256 levels, under 0.5% of pixels off
+/// by more than 8 levels) at every scale up to 1e3 sizes from the origin;
+/// at 1e6 sizes away f32 itself rounds the scene's coordinates to 1/16 of
+/// its size, so there the renderer must add no visible error to that
+/// rounding (same bound against the rounded scene rendered at the origin).
+fn check_scale_rows(rows: &[ScaleRow]) {
+    for r in rows {
+        assert_eq!(r.n_non_finite, 0, "scale {}: {r:?}", r.scale);
+        let within = |e: ImageError| e.mean_levels < 0.5 && e.fraction_off < 0.005;
+        assert!(within(r.vs_rounded_at_origin), "{r:?}");
+        if r.offset <= 1e3 {
+            assert!(within(r.vs_unit), "{r:?}");
+        }
+    }
+}
+
+#[test]
+fn seed_scene_looks_the_same_at_every_scale() {
+    let settings = RenderSettings {
+        width: 160,
+        height: 90,
+        spp: 1,
+        ..load_repo_scene("res/scenes/seed.toml").settings
+    };
+    check_scale_rows(&scale_case(
+        "seed",
+        || load_repo_scene("res/scenes/seed.toml"),
+        settings,
+    ));
+}
+
+#[test]
+fn closed_mesh_looks_the_same_at_every_scale() {
+    for shading in [Shading::Phong, Shading::Gouraud] {
+        let settings = RenderSettings {
+            width: 160,
+            height: 120,
+            spp: 1,
+            shading,
+            ..RenderSettings::default()
+        };
+        check_scale_rows(&scale_case(shading.name(), sphere_on_floor, settings));
+    }
+}
+
+/// Accumulation: `n` samples per pixel summed by the film against the same
+/// samples rendered one at a time and summed here in f64. Returns the
+/// largest relative difference over pixels and channels.
+fn accumulation_drift(n: u32) -> f64 {
+    use lucent_render::render_samples;
+    let scene = load_repo_scene("res/scenes/seed.toml");
+    let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let settings = RenderSettings {
+        width: 2,
+        height: 2,
+        ..scene.settings
+    };
+    let mut film = Film::new(2, 2);
+    render_samples(&rs, &settings, &mut film, 0..n, &|_| {});
+    let mut exact = [lucent_geom::DVec3::ZERO; 4];
+    let mut one = Film::new(2, 2);
+    for s in 0..n {
+        one.clear();
+        render_samples(&rs, &settings, &mut one, s..s + 1, &|_| {});
+        for (i, e) in exact.iter_mut().enumerate() {
+            *e += one.pixel(i as u32 % 2, i as u32 / 2).as_dvec3();
+        }
+    }
+    let mut drift = 0.0f64;
+    for (i, e) in exact.iter().enumerate() {
+        let mean = *e / f64::from(n);
+        let got = film.pixel(i as u32 % 2, i as u32 / 2).as_dvec3();
+        drift = drift.max(((got - mean).abs() / mean.abs().max(lucent_geom::DVec3::splat(1e-12))).max_element());
+    }
+    drift
+}
+
+#[test]
+fn long_accumulation_does_not_drift() {
+    let n = if full() { 1_000_000 } else { 100_000 };
+    let drift = accumulation_drift(n);
+    eprintln!("accumulation: {n} samples per pixel, largest relative drift {drift:.3e}");
+    // The mean is rounded to f32 once at the end (2^-24 = 6e-8 relative).
+    assert!(drift < 1e-6, "drift {drift:e} after {n} samples");
+}
