@@ -270,3 +270,154 @@ fn long_accumulation_does_not_drift() {
     // The mean is rounded to f32 once at the end (2^-24 = 6e-8 relative).
     assert!(drift < 1e-6, "drift {drift:e} after {n} samples");
 }
+
+/// A matte white surface lit by one directional light at `light_deg` from
+/// its normal (+y for the plane; for the sphere, from the camera's side),
+/// no ambient light, seen from `camera_theta` above the horizon: a lit
+/// pixel has exactly `n.l` radiance, a shadowed one 0.
+fn lit_surface(sphere: bool, light_deg: f32, camera_theta: f32) -> Scene {
+    let mut scene = Scene::default();
+    scene.environment.ambient = Vec3::ZERO;
+    let mesh = if sphere {
+        // Flat facets (no vertex normals): shading normal = geometric.
+        let ball = shapes::icosphere(3);
+        lucent_geom::TriMesh::new(ball.positions().to_vec(), ball.indices().to_vec()).unwrap_or_else(|e| panic!("{e}"))
+    } else {
+        shapes::plane()
+    };
+    let mesh = scene.add_mesh("surface", mesh);
+    let white = scene.add_material(
+        "white",
+        Material {
+            ka: Vec3::ZERO,
+            kd: Vec3::ONE,
+            ks: Vec3::ZERO,
+            ..Material::default()
+        },
+    );
+    let size = if sphere { 1.0 } else { 40.0 };
+    scene.add_instance("surface", mesh, white, Affine3A::from_scale(Vec3::splat(size)));
+    let a = light_deg.to_radians();
+    scene.add_light(
+        "sun",
+        Light::Directional {
+            to_light: Vec3::new(a.sin() * 0.6, a.cos(), a.sin() * 0.8),
+            intensity: Vec3::ONE,
+        },
+    );
+    scene.add_camera(
+        "cam",
+        Camera { fov_y_deg: 40.0 },
+        OrbitRig {
+            center: Vec3::ZERO,
+            radius: if sphere { 4.0 } else { 6.0 },
+            theta: camera_theta,
+            phi: 0.9,
+        },
+    );
+    scene
+}
+
+/// What the self-intersection case counts over one image.
+#[derive(Clone, Copy, Debug, Default)]
+struct SelfHits {
+    /// Pixels whose camera ray hits the surface where it faces the light.
+    lit: usize,
+    /// Of those, pixels darker than half their `n.l`: wrongly shadowed.
+    shadowed: usize,
+    /// Mirror rays (from the hit, offset as the renderer does) that hit
+    /// the surface again: a plane or a convex sphere can never see itself.
+    reflection_rehits: usize,
+    /// Refracted rays into the sphere whose next hit is their own triangle
+    /// or closer than 1e-5 of the radius: spurious.
+    refraction_rehits: usize,
+}
+
+fn self_hits(scene: &Scene, scale: f32, sphere: bool) -> SelfHits {
+    use lucent_geom::{Ray, offset_ray_origin_scaled, triangle_normal};
+    use lucent_shading::optics::{reflect, refract};
+    let (width, height) = (120, 90);
+    let settings = RenderSettings {
+        width,
+        height,
+        spp: 1,
+        shading: Shading::Phong,
+        ..RenderSettings::default()
+    };
+    let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
+    let film = render(&rs, &settings, &|_| {}).film;
+    let camera = lucent_render::PinholeCamera::new(&rs.camera, &rs.render_rig(), width, height);
+    let to_light = match rs.lights[0] {
+        Light::Directional { to_light, .. } => to_light.normalize(),
+        Light::Point { .. } => unreachable!("directional only"),
+    };
+    let mut out = SelfHits::default();
+    for row in 0..height {
+        for col in 0..width {
+            let ray = camera.ray(col as f32 + 0.5, row as f32 + 0.5);
+            let Some(hit) = rs.bvh.intersect(&ray, f32::INFINITY) else {
+                continue;
+            };
+            let inst = &rs.instances[hit.instance as usize];
+            let mesh = &rs.meshes[inst.mesh as usize];
+            let corners = mesh
+                .triangle(hit.prim as usize)
+                .map(|p| inst.world_from_object.transform_point3(p));
+            let mut ng = triangle_normal(corners).normalize();
+            if ng.dot(ray.dir) > 0.0 {
+                ng = -ng;
+            }
+            let p = corners[0] * (1.0 - hit.u - hit.v) + corners[1] * hit.u + corners[2] * hit.v;
+            let magnitude = corners.iter().fold(0.0f32, |m, c| m.max(c.abs().max_element()));
+            let cos = ng.dot(to_light);
+            if cos > 1e-3 {
+                out.lit += 1;
+                if film.pixel(col, row).x < 0.5 * cos {
+                    out.shadowed += 1;
+                }
+            }
+            let mirrored = Ray::new(offset_ray_origin_scaled(p, ng, magnitude), reflect(ray.dir, ng));
+            if rs.bvh.intersect(&mirrored, f32::INFINITY).is_some() {
+                out.reflection_rehits += 1;
+            }
+            if sphere && let Some(t) = refract(ray.dir, ng, 1.0 / 1.5) {
+                let inside = Ray::new(offset_ray_origin_scaled(p, -ng, magnitude), t.normalize());
+                let next = rs.bvh.intersect(&inside, f32::INFINITY);
+                if next.is_none_or(|n| n.prim == hit.prim || n.t < 1e-5 * scale) {
+                    out.refraction_rehits += 1;
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn no_shadow_acne_or_self_hits_at_any_scale_or_angle() {
+    let mut n_lit = 0;
+    for sphere in [false, true] {
+        for (light_deg, camera_theta) in [(0.0f32, 0.6f32), (60.0, 0.6), (89.0, 0.6), (89.9, 0.6), (30.0, 0.02)] {
+            for scale in [1e-6f32, 1e-3, 1.0, 1e3, 1e6] {
+                for offset in [0.0f32, 1e3] {
+                    let mut scene = lit_surface(sphere, light_deg, camera_theta);
+                    place(&mut scene, scale, Vec3::new(1.0, -1.0, 1.0) * offset * scale);
+                    let h = self_hits(&scene, scale, sphere);
+                    let what = if sphere { "sphere" } else { "plane" };
+                    if h.shadowed + h.reflection_rehits + h.refraction_rehits > 0 {
+                        eprintln!(
+                            "self-intersection: {what}, light {light_deg} deg, camera {camera_theta} rad, scale {scale:e}, {offset:e} sizes away: {h:?}"
+                        );
+                    }
+                    assert!(h.lit > 1000, "{what} should fill much of the picture: {h:?}");
+                    assert_eq!(
+                        (h.shadowed, h.reflection_rehits, h.refraction_rehits),
+                        (0, 0, 0),
+                        "{what}, light {light_deg}, camera {camera_theta}, scale {scale}, offset {offset}"
+                    );
+                    n_lit += h.lit;
+                }
+            }
+        }
+    }
+    eprintln!("self-intersection: {n_lit} lit pixels over all cases, 0 wrongly shadowed, 0 self-hits");
+}
