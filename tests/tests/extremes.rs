@@ -421,3 +421,69 @@ fn no_shadow_acne_or_self_hits_at_any_scale_or_angle() {
     }
     eprintln!("self-intersection: {n_lit} lit pixels over all cases, 0 wrongly shadowed, 0 self-hits");
 }
+
+/// The sphere-on-floor scene with a clear sphere (`kt` 1, nothing else) of
+/// index `ior`, or with no sphere.
+fn clear_sphere(ior: Option<f32>) -> Scene {
+    let mut scene = sphere_on_floor();
+    let ball = scene
+        .world
+        .query_mut::<(lucent_scene::hecs::Entity, &lucent_scene::components::Name, &Transform)>()
+        .into_iter()
+        .find(|(_, n, _)| n.0 == "ball")
+        .map(|(e, _, _)| e);
+    if let Some(ball) = ball {
+        let _ = scene.world.despawn(ball);
+    }
+    if let Some(ior) = ior {
+        let mesh = scene.add_mesh("clear ball", shapes::icosphere(4));
+        let clear = scene.add_material(
+            "clear",
+            Material {
+                ka: Vec3::ZERO,
+                kd: Vec3::ZERO,
+                ks: Vec3::ZERO,
+                kt: Vec3::ONE,
+                ior,
+                ..Material::default()
+            },
+        );
+        scene.add_instance(
+            "clear ball",
+            mesh,
+            clear,
+            Affine3A::from_translation(Vec3::new(0.0, 1.0, 0.0)),
+        );
+    }
+    scene
+}
+
+#[test]
+fn a_clear_surface_of_index_one_disappears_and_extreme_indices_stay_finite() {
+    let settings = RenderSettings {
+        width: 160,
+        height: 120,
+        spp: 1,
+        max_depth: 8,
+        shading: Shading::Phong,
+        ..RenderSettings::default()
+    };
+    let without = render_film(&clear_sphere(None), &settings);
+    let with = render_film(&clear_sphere(Some(1.0)), &settings);
+    let err = image_error(&without, &with);
+    eprintln!(
+        "optics: clear sphere of IOR 1 against no sphere: {:.4} levels mean, {:.3}% of pixels off by > 8",
+        err.mean_levels,
+        100.0 * err.fraction_off
+    );
+    assert!(err.mean_levels < 0.05 && err.fraction_off < 0.001, "{err:?}");
+    // A glass sphere really does change the picture (the check can fail).
+    let glass = image_error(&without, &render_film(&clear_sphere(Some(1.5)), &settings));
+    assert!(glass.fraction_off > 0.05, "{glass:?}");
+    for ior in [1e-3f32, 0.5, 2.42, 1e3, 1e6, 1e30, f32::MAX] {
+        let film = render_film(&clear_sphere(Some(ior)), &settings);
+        let n = film.stats().n_non_finite;
+        eprintln!("optics: clear sphere of IOR {ior:e}: {n} NaN/Inf pixels");
+        assert_eq!(n, 0, "IOR {ior}");
+    }
+}
