@@ -487,3 +487,143 @@ fn a_clear_surface_of_index_one_disappears_and_extreme_indices_stay_finite() {
         assert_eq!(n, 0, "IOR {ior}");
     }
 }
+
+/// The seed scene, extracted once for the camera cases.
+fn seed_render_scene() -> lucent_render::RenderScene {
+    extract(&load_repo_scene("res/scenes/seed.toml")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn render_rs(rs: &lucent_render::RenderScene, width: u32, height: u32) -> Film {
+    let settings = RenderSettings {
+        width,
+        height,
+        spp: 1,
+        ..RenderSettings::default()
+    };
+    render(rs, &settings, &|_| {}).film
+}
+
+#[test]
+fn the_orbit_rig_at_the_poles_and_radii_near_zero_and_huge() {
+    use std::f32::consts::FRAC_PI_2;
+    let mut rs = seed_render_scene();
+    let home = rs.rig;
+    let limit = lucent_scene::camera::THETA_LIMIT;
+    // At and past the poles the rig is held at 89.9 degrees: the same
+    // picture as at the limit, never a flipped or NaN frame.
+    rs.rig.theta = limit;
+    let at_limit = render_rs(&rs, 64, 36).to_srgb8();
+    for theta in [
+        FRAC_PI_2,
+        -FRAC_PI_2,
+        FRAC_PI_2 + 1e-7,
+        3.0,
+        1e30,
+        f32::INFINITY,
+        f32::NAN,
+    ] {
+        rs.rig = OrbitRig { theta, ..home };
+        let rig = rs.rig.sanitized();
+        let [x, y, z] = rig.axes();
+        let orthonormal = [x.dot(y), y.dot(z), z.dot(x)].iter().all(|d| d.abs() < 1e-6)
+            && [x, y, z].iter().all(|a| (a.length() - 1.0).abs() < 1e-6);
+        assert!(orthonormal && rig.position().is_finite(), "theta {theta}: {rig:?}");
+        let film = render_rs(&rs, 64, 36);
+        assert_eq!(film.stats().n_non_finite, 0, "theta {theta}");
+        if theta > 0.0 && theta.is_finite() {
+            assert_eq!(film.to_srgb8(), at_limit, "theta {theta} is the north limit");
+        }
+    }
+    // Radii from zero (the camera at the orbit centre, inside the scene)
+    // to far beyond the scene (which then covers under a pixel).
+    for radius in [0.0f32, -1.0, 1e-30, 1e-9, 1e-4, 1e3, 1e7, 1e30, f32::INFINITY, f32::NAN] {
+        rs.rig = OrbitRig { radius, ..home };
+        let film = render_rs(&rs, 64, 36);
+        let stats = film.stats();
+        eprintln!(
+            "camera: radius {radius:e} (used {:e}): {} NaN/Inf pixels, mean luminance {:.4}",
+            rs.rig.sanitized().radius,
+            stats.n_non_finite,
+            stats.mean_rgb.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+        );
+        assert_eq!(stats.n_non_finite, 0, "radius {radius}");
+    }
+    // From 1e7 away the whole scene is far under a pixel: the picture is
+    // the background, give or take one pixel.
+    rs.rig = OrbitRig { radius: 1e7, ..home };
+    let far = render_rs(&rs, 64, 36);
+    let background = rs.environment.background;
+    let n_other = (0..36)
+        .flat_map(|y| (0..64).map(move |x| (x, y)))
+        .filter(|&(x, y)| !far.pixel(x, y).abs_diff_eq(background, 1e-6))
+        .count();
+    assert!(n_other <= 1, "{n_other} pixels are not background");
+}
+
+#[test]
+fn one_pixel_and_16384_pixel_wide_images() {
+    let rs = seed_render_scene();
+    // One pixel sees along the view axis: the centre pixel of a 3x3 image.
+    let one = render_rs(&rs, 1, 1);
+    let three = render_rs(&rs, 3, 3);
+    assert_eq!(one.pixel(0, 0), three.pixel(1, 1));
+    assert_eq!(one.stats().n_non_finite, 0);
+    // A 16384-pixel-wide strip: the field of view is vertical, so its
+    // middle 1024 columns see exactly what a 1024-wide image sees.
+    let height = if full() { 512 } else { 8 };
+    let wide = render_rs(&rs, 16384, height);
+    let narrow = render_rs(&rs, 1024, height);
+    assert_eq!(wide.stats().n_non_finite, 0);
+    let mut n_diff = 0;
+    for y in 0..height {
+        for x in 0..1024 {
+            n_diff += usize::from(wide.pixel(x + (16384 - 1024) / 2, y) != narrow.pixel(x, y));
+        }
+    }
+    eprintln!(
+        "camera: 16384x{height} image: {} NaN/Inf pixels, middle 1024 columns differ from a 1024-wide image in {n_diff} pixels",
+        wide.stats().n_non_finite
+    );
+    assert_eq!(n_diff, 0);
+}
+
+#[test]
+fn fields_of_view_near_0_and_near_180_degrees() {
+    let mut rs = seed_render_scene();
+    // Odd sizes: the centre pixel's ray is the view axis at any field of
+    // view, so the centre pixel never changes.
+    rs.camera.fov_y_deg = 40.0;
+    let reference = render_rs(&rs, 33, 33).pixel(16, 16);
+    for fov in [
+        1e-30f32,
+        1e-6,
+        1e-3,
+        0.1,
+        90.0,
+        179.0,
+        179.999,
+        180.0,
+        1e3,
+        0.0,
+        -5.0,
+        f32::NAN,
+    ] {
+        rs.camera.fov_y_deg = fov;
+        let film = render_rs(&rs, 33, 33);
+        let stats = film.stats();
+        // Near 0 degrees every pixel sees (nearly) the same point.
+        let spread = (0..33)
+            .flat_map(|y| (0..33).map(move |x| (x, y)))
+            .map(|(x, y)| (film.pixel(x, y) - film.pixel(16, 16)).abs().max_element())
+            .fold(0.0f32, f32::max);
+        eprintln!(
+            "camera: fov {fov:e} deg: {} NaN/Inf pixels, largest difference from the centre pixel {spread:.2e}",
+            stats.n_non_finite
+        );
+        assert_eq!(stats.n_non_finite, 0, "fov {fov}");
+        assert_eq!(film.pixel(16, 16), reference, "fov {fov}: the centre pixel moved");
+        if fov.abs() <= 1e-3 {
+            assert!(spread < 0.02, "fov {fov}: spread {spread}");
+        }
+    }
+}
