@@ -627,3 +627,165 @@ fn fields_of_view_near_0_and_near_180_degrees() {
         }
     }
 }
+
+#[test]
+fn non_finite_vertices_are_rejected_at_load_and_never_reach_the_renderer() {
+    // A unit square plus two triangles on a NaN and an infinite vertex; no
+    // [camera] table, so the camera is fitted to the scene's bounds.
+    let obj: &[u8] = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv nan 0 0\nv 0 inf 0\n\
+f 1 2 3\nf 1 3 4\nf 3 2 5\nf 4 3 6\n";
+    let toml: &[u8] = b"[[lights]]\ntype = \"directional\"\nto_light = [0, 0, 1]\n[[objects]]\nmesh = \"a.obj\"\n";
+    let src = lucent_assets::MemorySource::new()
+        .with_file("s.toml", toml)
+        .with_file("a.obj", obj);
+    let (scene, report) =
+        lucent_assets::load_scene_from(&src, std::path::Path::new("s.toml")).unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("geometry: non-finite vertices: {:?}", report.warnings);
+    assert!(report.warnings.iter().any(|w| w.contains("rejected 2 vertices")));
+    let (_, rig) = scene.camera().unwrap_or_else(|| panic!("a camera"));
+    assert!(
+        (rig.center - Vec3::new(0.5, 0.5, 0.0)).length() < 1e-6 && rig.radius < 10.0,
+        "the camera frames the square: {rig:?}"
+    );
+    let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(rs.meshes[0].n_triangles(), 4, "triangle numbers are kept");
+    assert_eq!(rs.bvh.meshes()[0].n_triangles(), 2, "only the square reaches the BVH");
+    let film = render(
+        &rs,
+        &RenderSettings {
+            width: 32,
+            height: 32,
+            ..scene.settings
+        },
+        &|_| {},
+    )
+    .film;
+    assert_eq!(film.stats().n_non_finite, 0);
+}
+
+/// Closest hits through the BVH and by brute force, over a grid of rays
+/// through `mesh`'s bounds and rays at every triangle's centroid, from
+/// several sides: (rays, hits, disagreements, non-finite hits).
+fn bvh_agrees_with_brute_force(mesh: &lucent_geom::TriMesh) -> (usize, usize, usize, usize) {
+    use lucent_accel::{BuildParams, MeshBvh};
+    let bvh = MeshBvh::build(mesh, &BuildParams::default());
+    let b = mesh.bounds();
+    let (c, r) = (b.center(), b.extent().length().max(1e-30));
+    let mut out = (0, 0, 0, 0);
+    for dir in [
+        Vec3::X,
+        Vec3::Y,
+        Vec3::Z,
+        Vec3::new(1.0, 2.0, 3.0).normalize(),
+        -Vec3::ONE.normalize(),
+    ] {
+        let (u, v) = (dir.any_orthonormal_pair().0, dir.any_orthonormal_pair().1);
+        for i in 0..64 {
+            for j in 0..64 {
+                let off = (i as f32 / 63.0 - 0.5) * u + (j as f32 / 63.0 - 0.5) * v;
+                let ray = lucent_geom::Ray::new(c + r * (off - 2.0 * dir), dir);
+                let (a, bf) = (
+                    bvh.intersect(&ray, f32::INFINITY),
+                    bvh.intersect_brute_force(&ray, f32::INFINITY),
+                );
+                out.0 += 1;
+                out.1 += usize::from(a.is_some());
+                out.2 += usize::from(a.map(|h| h.t) != bf.map(|h| h.t));
+                out.3 += usize::from(a.is_some_and(|h| !(h.t.is_finite() && h.u.is_finite() && h.v.is_finite())));
+            }
+        }
+        for t in 0..mesh.n_triangles() {
+            let [p0, p1, p2] = mesh.triangle(t);
+            let ray = lucent_geom::Ray::new((p0 + p1 + p2) / 3.0 - 2.0 * r * dir, dir);
+            let (a, bf) = (
+                bvh.intersect(&ray, f32::INFINITY),
+                bvh.intersect_brute_force(&ray, f32::INFINITY),
+            );
+            out.0 += 1;
+            out.1 += usize::from(a.is_some());
+            out.2 += usize::from(a.map(|h| h.t) != bf.map(|h| h.t));
+            out.3 += usize::from(a.is_some_and(|h| !(h.t.is_finite() && h.u.is_finite() && h.v.is_finite())));
+        }
+    }
+    out
+}
+
+#[test]
+fn degenerate_needle_and_sliver_triangles_and_a_million_in_one_point() {
+    use lucent_geom::TriMesh;
+    // Degenerate: points, collinear corners, repeated indices, mixed with
+    // proper triangles; they are never hit and break nothing.
+    let mut p = vec![
+        Vec3::ZERO,
+        Vec3::X,
+        Vec3::Y,
+        Vec3::new(2.0, 0.0, 0.0),
+        Vec3::new(0.5, 0.5, 0.0),
+    ];
+    p.push(Vec3::new(0.25, 0.25, 0.0));
+    let degenerate = vec![[0, 0, 0], [0, 1, 3], [1, 1, 2], [0, 1, 2], [4, 4, 5], [2, 4, 1]];
+    let mesh = TriMesh::new(p, degenerate).unwrap_or_else(|e| panic!("{e}"));
+    let (rays, hits, disagree, bad) = bvh_agrees_with_brute_force(&mesh);
+    eprintln!(
+        "geometry: degenerate mix: {rays} rays, {hits} hits, {disagree} BVH/brute-force disagreements, {bad} non-finite hits"
+    );
+    assert_eq!((disagree, bad), (0, 0));
+    assert!(hits > 0);
+    // Needles (one edge 1e-7 of the others) and slivers (a vertex 1e-7 off
+    // the opposite edge), at several scales.
+    for scale in [1e-6f32, 1.0, 1e6] {
+        let mut p = Vec::new();
+        let mut t = Vec::new();
+        for k in 0..1000u32 {
+            let x = k as f32 * 1e-3;
+            let base = p.len() as u32;
+            // Needle: long along z, 1e-7 wide.
+            p.extend([
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x + 1e-7, 0.0, 0.0),
+                Vec3::new(x, 0.0, 1.0),
+            ]);
+            // Sliver: 1 wide, its third corner 1e-7 off the base.
+            p.extend([
+                Vec3::new(0.0, x, 0.5),
+                Vec3::new(1.0, x, 0.5),
+                Vec3::new(0.5, x + 1e-7, 0.5),
+            ]);
+            t.extend([[base, base + 1, base + 2], [base + 3, base + 4, base + 5]]);
+        }
+        let p = p.into_iter().map(|v| v * scale).collect();
+        let mesh = TriMesh::new(p, t).unwrap_or_else(|e| panic!("{e}"));
+        let (rays, hits, disagree, bad) = bvh_agrees_with_brute_force(&mesh);
+        eprintln!(
+            "geometry: needles and slivers at scale {scale:e}: {rays} rays, {hits} hits, {disagree} disagreements, {bad} non-finite hits"
+        );
+        assert_eq!((disagree, bad), (0, 0), "scale {scale}");
+        // Rays along y meet every needle, along z every sliver, the
+        // diagonals both: most centroid rays hit.
+        assert!(hits >= 4000, "scale {scale}: {hits} hits");
+    }
+    // A million triangles in one point, at the origin and far from it: the
+    // build ends with a bounded tree and rays through the point find
+    // nothing.
+    let n = 1_000_000u32;
+    for at in [Vec3::ZERO, Vec3::splat(1e6)] {
+        let mesh = TriMesh::new(vec![at; 3], vec![[0, 1, 2]; n as usize]).unwrap_or_else(|e| panic!("{e}"));
+        let start = std::time::Instant::now();
+        let bvh = lucent_accel::MeshBvh::build(&mesh, &lucent_accel::BuildParams::default());
+        let built = start.elapsed();
+        let stats = bvh.stats();
+        let ray = lucent_geom::Ray::new(at - Vec3::Z, Vec3::Z);
+        let start = std::time::Instant::now();
+        let hit = bvh.intersect(&ray, f32::INFINITY);
+        let occluded = bvh.occluded(&ray, f32::INFINITY);
+        eprintln!(
+            "geometry: {n} triangles in one point at {at}: built in {built:.2?} ({} nodes, depth {}, largest leaf {}), a ray through it in {:.2?}: hit {hit:?}",
+            stats.n_nodes,
+            stats.max_depth,
+            stats.max_leaf_size,
+            start.elapsed()
+        );
+        assert!(hit.is_none() && !occluded);
+        assert!(stats.max_depth <= 64, "{stats:?}");
+    }
+}

@@ -3,8 +3,9 @@
 //! to 1e6 and far from the origin. A ray that slips between two triangles
 //! sharing an edge, or through the fan around a vertex, is a leak.
 //!
-//! The meshes: an icosphere, a cube with subdivided faces turned off the
-//! axes, and Spot the cow (closed, from `res/`). Their vertices are scaled
+//! The meshes: an icosphere, the same with three vertices of its own per
+//! triangle (duplicated vertices), a cube with subdivided faces turned off
+//! the axes, and Spot the cow (closed, from `res/`). Their vertices are scaled
 //! and moved in their own coordinates (what the triangle test sees), and a
 //! tenth of the rays go through an instance transform instead. The figures
 //! print with `-- --nocapture`; `cargo xtask extremes` runs ten times the
@@ -53,6 +54,16 @@ fn subdivided_cube(n: u32) -> TriMesh {
             }
         }
     }
+    TriMesh::new(positions, indices).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// `mesh` with three vertices of its own for every triangle (duplicated
+/// vertices: closed by position, not by index).
+fn unwelded(mesh: &TriMesh) -> TriMesh {
+    let positions: Vec<Vec3> = (0..mesh.n_triangles()).flat_map(|t| mesh.triangle(t)).collect();
+    let indices = (0..mesh.n_triangles() as u32)
+        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+        .collect();
     TriMesh::new(positions, indices).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -281,10 +292,15 @@ fn shoot_parallel(mesh: &TriMesh, convex: bool, n_rays: u64, tracer: &Tracer<'_>
 #[test]
 fn rays_at_shared_edges_and_vertices_do_not_leak_at_any_scale() {
     let full = std::env::var_os("LUCENT_EXTREMES_FULL").is_some();
-    // Rays per mesh and placement: three meshes make 1.05M per placement.
-    let per_mesh: u64 = if full { 3_500_000 } else { 350_000 };
+    // Rays per mesh and placement: four meshes make 1.05M per placement.
+    let per_mesh: u64 = if full { 2_625_000 } else { 262_500 };
     let meshes = [
         ("icosphere", shapes::icosphere(4), true),
+        (
+            "icosphere with duplicated vertices",
+            unwelded(&shapes::icosphere(4)),
+            true,
+        ),
         ("subdivided cube", subdivided_cube(16), true),
         ("cow", cow(), false),
     ];
