@@ -231,9 +231,12 @@ fn closed_mesh_looks_the_same_at_every_scale() {
 }
 
 /// Accumulation: `n` samples per pixel summed by the film against the same
-/// samples rendered one at a time and summed here in f64. Returns the
-/// largest relative difference over pixels and channels.
-fn accumulation_drift(n: u32) -> f64 {
+/// samples rendered one at a time and summed here exactly (f64). Returns
+/// the largest relative difference over pixels and channels for the film,
+/// and for the same samples summed in f32 in the same order (what the film
+/// did before it summed in f64).
+fn accumulation_drift(n: u32) -> (f64, f64) {
+    use lucent_geom::DVec3;
     use lucent_render::render_samples;
     let scene = load_repo_scene("res/scenes/seed.toml");
     let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
@@ -244,29 +247,35 @@ fn accumulation_drift(n: u32) -> f64 {
     };
     let mut film = Film::new(2, 2);
     render_samples(&rs, &settings, &mut film, 0..n, &|_| {});
-    let mut exact = [lucent_geom::DVec3::ZERO; 4];
+    let mut exact = [DVec3::ZERO; 4];
+    let mut single = [Vec3::ZERO; 4];
     let mut one = Film::new(2, 2);
     for s in 0..n {
         one.clear();
         render_samples(&rs, &settings, &mut one, s..s + 1, &|_| {});
-        for (i, e) in exact.iter_mut().enumerate() {
-            *e += one.pixel(i as u32 % 2, i as u32 / 2).as_dvec3();
+        for i in 0..4 {
+            let px = one.pixel(i as u32 % 2, i as u32 / 2);
+            exact[i] += px.as_dvec3();
+            single[i] += px;
         }
     }
-    let mut drift = 0.0f64;
-    for (i, e) in exact.iter().enumerate() {
-        let mean = *e / f64::from(n);
-        let got = film.pixel(i as u32 % 2, i as u32 / 2).as_dvec3();
-        drift = drift.max(((got - mean).abs() / mean.abs().max(lucent_geom::DVec3::splat(1e-12))).max_element());
+    let rel = |got: DVec3, mean: DVec3| ((got - mean).abs() / mean.abs().max(DVec3::splat(1e-12))).max_element();
+    let (mut drift, mut drift_f32) = (0.0f64, 0.0f64);
+    for i in 0..4 {
+        let mean = exact[i] / f64::from(n);
+        drift = drift.max(rel(film.pixel(i as u32 % 2, i as u32 / 2).as_dvec3(), mean));
+        drift_f32 = drift_f32.max(rel((single[i] / n as f32).as_dvec3(), mean));
     }
-    drift
+    (drift, drift_f32)
 }
 
 #[test]
 fn long_accumulation_does_not_drift() {
     let n = if full() { 1_000_000 } else { 100_000 };
-    let drift = accumulation_drift(n);
-    eprintln!("accumulation: {n} samples per pixel, largest relative drift {drift:.3e}");
+    let (drift, drift_f32) = accumulation_drift(n);
+    eprintln!(
+        "accumulation: {n} samples per pixel, largest relative drift {drift:.3e} (the same samples summed in f32: {drift_f32:.3e})"
+    );
     // The mean is rounded to f32 once at the end (2^-24 = 6e-8 relative).
     assert!(drift < 1e-6, "drift {drift:e} after {n} samples");
 }
