@@ -3,7 +3,7 @@
 //!
 //! Fields used: Ka (default Kd), Kd, Ks, Ns, Ke (emission), Ni, d or Tr
 //! (`d < 1` gives transmission `kt = 1 - d`), illum (3, 5 and 7 set the
-//! mirror weight `kr = Ks`) and map_Kd with `-s` (uv scale), `-o` (uv
+//! mirror weight `kr = Ks`), Pr (roughness, clamped to 0..1) and map_Kd with `-s` (uv scale), `-o` (uv
 //! offset) and `-clamp on|off`; other options are read past with a
 //! warning. A missing MTL, material or texture is a warning and shows in
 //! magenta, never an error.
@@ -74,7 +74,7 @@ pub(crate) fn load_materials(
 /// Rewrites MTL text so tobj reads it safely, and checks what tobj would
 /// reject without a line: colour statements (`Ka`, `Kd`, `Ks`, `Ke`, `Tf`)
 /// take one number (grey, expanded to three, as the MTL specification says;
-/// tobj 4.0.5 panics on fewer than three) or three; `Ns`, `Ni`, `d`, `Tr`
+/// tobj 4.0.5 panics on fewer than three) or three; `Ns`, `Ni`, `d`, `Tr`, `Pr`
 /// take a number, `illum` a small integer, `newmtl` and `map_*` an
 /// argument. Problems are `(line, message)`. Inline `#` comments are
 /// dropped.
@@ -94,7 +94,7 @@ pub(crate) fn normalize_mtl(bytes: &[u8]) -> Result<String, (usize, String)> {
                 Some([r, g, b]) => out.push_str(&format!("{keyword} {r} {g} {b}")),
                 _ => return bad("one or three numbers"),
             },
-            "Ns" | "Ni" | "d" | "Tr" => match numbers.as_deref() {
+            "Ns" | "Ni" | "d" | "Tr" | "Pr" => match numbers.as_deref() {
                 Some([_]) => out.push_str(line),
                 _ => return bad("one number"),
             },
@@ -129,6 +129,13 @@ fn convert_material(
     // `Tr` is transparency, the complement of `d`; `d` wins when both appear.
     let tr = m.unknown_param.get("Tr").and_then(|t| t.parse::<f32>().ok());
     let opacity = m.dissolve.or(tr.map(|t| 1.0 - t)).unwrap_or(1.0);
+    // `Pr` (PBR extension): roughness, checked to be a number by
+    // `normalize_mtl`; clamped to its range here.
+    let pr = m
+        .unknown_param
+        .get("Pr")
+        .and_then(|t| t.parse::<f32>().ok())
+        .map(|r| r.clamp(0.0, 1.0));
     let mut material = Material {
         ka: v(m.ambient, kd),
         kd,
@@ -141,6 +148,7 @@ fn convert_material(
         },
         kt: Vec3::splat((1.0 - opacity).clamp(0.0, 1.0)),
         ior: m.optical_density.filter(|n| n.is_finite() && *n > 0.0).unwrap_or(1.0),
+        roughness: pr.unwrap_or(0.0),
         emission: v(m.emissive, Vec3::ZERO),
         diffuse_map: None,
     };

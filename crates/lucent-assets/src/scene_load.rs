@@ -131,6 +131,7 @@ impl Loader<'_> {
             kr: d.kr.0,
             kt: d.kt.0,
             ior: d.ior,
+            roughness: d.roughness,
             emission: d.emission.0,
             diffuse_map,
         })

@@ -297,6 +297,9 @@ pub struct MaterialDesc {
     /// Index of refraction (inside over outside).
     #[serde(default = "MaterialDesc::default_ior", deserialize_with = "positive")]
     pub ior: f32,
+    /// Roughness of the mirror lobe for the path tracer, 0 (smooth) to 1.
+    #[serde(default, deserialize_with = "roughness")]
+    pub roughness: f32,
     /// Emitted radiance.
     #[serde(default)]
     pub emission: Color,
@@ -525,6 +528,14 @@ fn subdivisions<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error
 
 fn unit_interval<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
     checked(d, |v: f32| (0.0..=1.0).contains(&v), "must be between 0 and 1").map(Some)
+}
+
+fn roughness<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+    checked(
+        d,
+        |v: f32| (0.0..=1.0).contains(&v),
+        "roughness must be between 0 and 1",
+    )
 }
 
 fn finite<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {

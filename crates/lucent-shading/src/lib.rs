@@ -10,8 +10,12 @@
 //! - [`phong`]: the report's Phong model (S9) split into per-light terms so
 //!   that it can be evaluated at vertices (Gouraud, S10) or per pixel.
 //! - [`color`]: the sRGB transfer function, both ways.
-//! - [`optics`]: mirror reflection and Snell refraction with total internal
-//!   reflection.
+//! - [`optics`]: mirror reflection, Snell refraction with total internal
+//!   reflection, and the exact dielectric Fresnel reflectance.
+//! - [`bsdf`]: the path tracer's physically based scattering ([`Bsdf`]:
+//!   Lambertian, normalised Phong, smooth and GGX conductors, smooth
+//!   dielectric) with eval, sample and pdf in a local [`Frame`];
+//!   [`Material::bsdf`] maps a material onto it.
 //!
 //! Invariants: no IO, no allocation per call, no panics on data (NaN texture
 //! coordinates, zero normals and the like give finite or well-defined
@@ -25,6 +29,7 @@
 //! ```
 #![forbid(unsafe_code)]
 
+pub mod bsdf;
 pub mod color;
 mod light;
 mod material;
@@ -32,6 +37,7 @@ pub mod optics;
 pub mod phong;
 mod texture;
 
+pub use bsdf::{Bsdf, BsdfSample, Frame};
 pub use light::{Light, LightSample};
 pub use lucent_geom::{Vec2, Vec3};
 pub use material::Material;

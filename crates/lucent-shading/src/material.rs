@@ -1,6 +1,6 @@
 //! The material parameter set shared by every integrator.
 
-use crate::Texture;
+use crate::{Bsdf, Texture};
 use lucent_geom::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -11,6 +11,8 @@ use std::sync::Arc;
 /// and `kt` times the refracted ray. The report used Ks as the mirror weight
 /// too; Lucent keeps the highlight (`ks`) and the mirror (`kr`) apart so a
 /// glossy highlight does not imply a mirror. Colours are linear RGB.
+///
+/// The path tracer reads the same fields through [`Material::bsdf`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     /// Ambient reflectance Ka.
@@ -28,6 +30,9 @@ pub struct Material {
     pub kt: Vec3,
     /// Index of refraction of the inside relative to the outside.
     pub ior: f32,
+    /// Roughness of the mirror (`kr`) lobe for the path tracer, 0 (smooth)
+    /// to 1; the GGX `alpha` is `roughness^2`. Whitted ignores it.
+    pub roughness: f32,
     /// Emitted radiance (MTL `Ke`), added unshadowed.
     pub emission: Vec3,
     /// Texture multiplying Ka and Kd (MTL `map_Kd`).
@@ -45,6 +50,7 @@ impl Default for Material {
             kr: Vec3::ZERO,
             kt: Vec3::ZERO,
             ior: 1.0,
+            roughness: 0.0,
             emission: Vec3::ZERO,
             diffuse_map: None,
         }
@@ -60,6 +66,56 @@ impl Material {
     /// Whether the surface spawns mirror rays.
     pub fn is_reflective(&self) -> bool {
         self.kr.max_element() > 0.0
+    }
+
+    /// The physically based BSDF for this material; `tint` is
+    /// [`diffuse_tint`](Material::diffuse_tint) at the hit (texture colour,
+    /// or white).
+    ///
+    /// | fields | lobe |
+    /// | --- | --- |
+    /// | `kd` | Lambertian, albedo `kd * tint` |
+    /// | `ks`, `shininess` n | normalised Phong lobe `ks (n+2)/(2 pi) cos^n alpha` around the mirror direction |
+    /// | `kr`, `roughness` 0 | smooth mirror of reflectance `kr` (Fresnel 1) |
+    /// | `kr`, `roughness` r > 0 | GGX conductor, `alpha = r^2`, reflectance `kr` (Fresnel 1) |
+    /// | `kt`, `ior` | smooth dielectric, `eta = ior` (inside over outside), weighted by `kt` |
+    /// | `ka`, `emission` | not a BSDF: ambient is ignored, emission is the integrator's |
+    ///
+    /// Each of `kd`, `ks`, `kr`, `kt` is first clamped to `[0, 1]` per
+    /// channel (NaN reads as 0) and `tint` too. When `kd + ks + kr + kt`
+    /// exceeds 1 in some channel, all four are divided by that largest
+    /// channel sum, computed without the tint so the split between lobes is
+    /// the same across a texture. Every lobe reflects (or transmits) at most
+    /// its weight, so the mixture never creates energy. `roughness` only
+    /// shapes the `kr` lobe; transmission stays smooth.
+    ///
+    /// ```
+    /// use lucent_shading::{Bsdf, Material, Vec3};
+    /// let glass = Material { kd: Vec3::ZERO, kt: Vec3::ONE, ior: 1.5, ..Material::default() };
+    /// assert_eq!(glass.bsdf(Vec3::ONE), Bsdf::dielectric(1.5));
+    /// let over = Material { kd: Vec3::splat(0.8), kr: Vec3::splat(0.8), ..Material::default() };
+    /// let half = Material { kd: Vec3::splat(0.5), kr: Vec3::splat(0.5), ..Material::default() };
+    /// assert_eq!(over.bsdf(Vec3::ONE), half.bsdf(Vec3::ONE));
+    /// ```
+    pub fn bsdf(&self, tint: Vec3) -> Bsdf {
+        let unit = |v: Vec3| v.max(Vec3::ZERO).min(Vec3::ONE);
+        let (kd, ks, kr, kt) = (unit(self.kd), unit(self.ks), unit(self.kr), unit(self.kt));
+        let most = (kd + ks + kr + kt).max_element();
+        let scale = if most > 1.0 { 1.0 / most } else { 1.0 };
+        let roughness = if self.roughness.is_nan() {
+            0.0
+        } else {
+            self.roughness.clamp(0.0, 1.0)
+        };
+        Bsdf::mix(
+            kd * unit(tint) * scale,
+            ks * scale,
+            self.shininess,
+            kr * scale,
+            roughness * roughness,
+            kt * scale,
+            self.ior,
+        )
     }
 
     /// The texture colour at `uv`, or white without a texture (or UVs).

@@ -1,4 +1,5 @@
-//! Mirror reflection and Snell refraction of ray directions.
+//! Mirror reflection and Snell refraction of ray directions, and the
+//! Fresnel reflectance of a smooth dielectric boundary.
 
 use lucent_geom::Vec3;
 
@@ -26,6 +27,52 @@ pub fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
     let cos2_t = (1.0 - eta) * (1.0 + eta) + (eta * cos_i) * (eta * cos_i);
     let cos_t = cos2_t.max(0.0).sqrt();
     Some(eta * d + (eta * cos_i - cos_t) * n)
+}
+
+/// Exact Fresnel reflectance of unpolarised light at a smooth boundary
+/// between two dielectrics: the mean of the s- and p-polarised power
+/// reflectances.
+///
+/// `cos_theta_i` is the cosine of the angle between the incident direction
+/// and the normal; only its absolute value is used. `eta` is the relative
+/// index **`n_transmitted / n_incident`** (for light arriving from outside a
+/// glass of index 1.5 in air, `eta = 1.5`; from inside, `1 / 1.5`). Past the
+/// critical angle (total internal reflection) the result is 1. The
+/// transmitted fraction of the power is `1 - fresnel_dielectric(..)`.
+///
+/// Degenerate input never panics: a `cos_theta_i` above 1 is read as 1, and
+/// a NaN cosine or an `eta` that is not a positive finite number gives 1
+/// (everything reflected, nothing transmitted).
+///
+/// ```
+/// use lucent_shading::optics::fresnel_dielectric;
+/// // Normal incidence on glass: ((1.5 - 1) / (1.5 + 1))^2 = 0.04.
+/// assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
+/// // Inside the glass past the critical angle: total internal reflection.
+/// assert_eq!(fresnel_dielectric(0.2, 1.0 / 1.5), 1.0);
+/// ```
+#[inline]
+pub fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
+    if cos_theta_i.is_nan() || !(eta > 0.0 && eta.is_finite()) {
+        return 1.0;
+    }
+    let cos_i = cos_theta_i.abs().min(1.0);
+    // Snell: sin_t = sin_i / eta.
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t > 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let s_den = cos_i + eta * cos_t;
+    let p_den = eta * cos_i + cos_t;
+    if s_den <= 0.0 || p_den <= 0.0 {
+        // Both cosines zero: only possible at grazing incidence with
+        // eta = 1, where the boundary is invisible.
+        return 0.0;
+    }
+    let r_s = (cos_i - eta * cos_t) / s_den;
+    let r_p = (eta * cos_i - cos_t) / p_den;
+    0.5 * (r_s * r_s + r_p * r_p)
 }
 
 #[cfg(test)]
@@ -149,5 +196,56 @@ mod tests {
         for eta in [f32::NAN, 0.0] {
             assert!(refract(incoming(30.0), Vec3::Y, eta).is_none_or(|t| t.is_finite()));
         }
+    }
+
+    #[test]
+    fn fresnel_closed_forms_and_energy() {
+        // Normal incidence: ((eta - 1) / (eta + 1))^2 from either side.
+        for eta in [1.2f32, 1.5, 2.4] {
+            let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+            assert!((fresnel_dielectric(1.0, eta) - r0).abs() < 1e-6);
+            assert!((fresnel_dielectric(1.0, 1.0 / eta) - r0).abs() < 1e-6);
+        }
+        // Brewster's angle (tan theta = eta): the p part vanishes, so R is
+        // half the s reflectance, computed here independently from angles.
+        let eta = 1.5f32;
+        let theta_b = eta.atan();
+        let theta_t = (theta_b.sin() / eta).asin();
+        let r_s = ((theta_b - theta_t).sin() / (theta_b + theta_t).sin()).powi(2);
+        assert!((fresnel_dielectric(theta_b.cos(), eta) - 0.5 * r_s).abs() < 1e-5);
+        // Power balance with the transmission coefficients: R + T = 1 where
+        // T = (n_t cos_t / n_i cos_i) |t|^2 for each polarisation.
+        for deg in [0.0f32, 20.0, 45.0, 70.0, 89.0] {
+            let cos_i = deg.to_radians().cos();
+            let cos_t = (1.0 - (1.0 - cos_i * cos_i) / (eta * eta)).sqrt();
+            let t_s = 2.0 * cos_i / (cos_i + eta * cos_t);
+            let t_p = 2.0 * cos_i / (eta * cos_i + cos_t);
+            let t = 0.5 * eta * cos_t / cos_i * (t_s * t_s + t_p * t_p);
+            assert!((fresnel_dielectric(cos_i, eta) + t - 1.0).abs() < 1e-5, "{deg} degrees");
+        }
+        // Grazing incidence reflects everything; the sign of cos is ignored.
+        assert!((fresnel_dielectric(0.0, 1.5) - 1.0).abs() < 1e-6);
+        assert_eq!(fresnel_dielectric(-0.5, 1.5), fresnel_dielectric(0.5, 1.5));
+    }
+
+    #[test]
+    fn fresnel_total_internal_reflection_and_degenerate_input() {
+        let critical = (1.0f32 / 1.5).asin();
+        let below = (critical - 0.01).cos();
+        let beyond = (critical + 0.01).cos();
+        assert!(fresnel_dielectric(below, 1.0 / 1.5) < 1.0);
+        assert_eq!(fresnel_dielectric(beyond, 1.0 / 1.5), 1.0);
+        assert_eq!(fresnel_dielectric(0.7, 1.0), 0.0);
+        assert_eq!(fresnel_dielectric(0.0, 1.0), 0.0);
+        for (c, e) in [
+            (f32::NAN, 1.5),
+            (0.5, f32::NAN),
+            (0.5, 0.0),
+            (0.5, -1.5),
+            (0.5, f32::INFINITY),
+        ] {
+            assert_eq!(fresnel_dielectric(c, e), 1.0, "({c}, {e})");
+        }
+        assert!(fresnel_dielectric(7.0, 1.5).is_finite());
     }
 }

@@ -82,6 +82,7 @@ fn material_json(name: &str, m: &Material) -> Value {
         "kr": vec3(m.kr),
         "kt": vec3(m.kt),
         "ior": num(m.ior),
+        "roughness": num(m.roughness),
         "emission": vec3(m.emission),
         "diffuse_map": m.diffuse_map.as_ref().map(|t| json!({ "width": t.width(), "height": t.height() })),
     })

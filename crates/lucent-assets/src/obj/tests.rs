@@ -7,7 +7,7 @@ use crate::{MemorySource, load_mesh_from};
 
 const QUAD_OBJ: &[u8] = b"mtllib q.mtl\r\nv 0 0 0\r\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
 usemtl shiny\nf 1/1 2/2 3/3 4/4\n";
-const QUAD_MTL: &[u8] = b"newmtl shiny\nKa 0.1 0.1 0.1  # comment\nKd 0.5 0.25 0\nKs 0.9 0.9 0.9\nNs 50\nillum 3\nd 0.75\nNi 1.33\nKe 2 3 4\nmap_Kd -s 2 2 1 -o 0.5 0 -clamp on -bm 0.3 tex.png\n";
+const QUAD_MTL: &[u8] = b"newmtl shiny\nKa 0.1 0.1 0.1  # comment\nKd 0.5 0.25 0\nKs 0.9 0.9 0.9\nNs 50\nillum 3\nd 0.75\nNi 1.33\nKe 2 3 4\nPr 0.4\nmap_Kd -s 2 2 1 -o 0.5 0 -clamp on -bm 0.3 tex.png\n";
 
 fn load(files: &[(&str, &'static [u8])], path: &str) -> Result<(Vec<MeshPart>, LoadReport), String> {
     let src = files
@@ -41,7 +41,7 @@ fn loads_polygons_uvs_and_mtl() {
             Vec3::new(2.0, 3.0, 4.0)
         )
     );
-    assert_eq!((m.kr, m.kt), (Vec3::splat(0.9), Vec3::splat(0.25)));
+    assert_eq!((m.kr, m.kt, m.roughness), (Vec3::splat(0.9), Vec3::splat(0.25), 0.4));
     // The texture is missing: a warning and a checkerboard, not an error;
     // its options are kept and the unknown one is a warning.
     let tex = m
@@ -81,6 +81,10 @@ fn mtl_fields_are_checked_with_lines() {
     assert_eq!(
         normalize_mtl(b"newmtl a\n\nNs shiny\n"),
         Err((3, "`Ns` needs one number, found 'shiny'".into()))
+    );
+    assert_eq!(
+        normalize_mtl(b"Pr rough\n"),
+        Err((1, "`Pr` needs one number, found 'rough'".into()))
     );
     assert_eq!(
         normalize_mtl(b"illum 300\n"),

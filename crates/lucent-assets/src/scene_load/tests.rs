@@ -27,6 +27,7 @@ to_light = [0, 2, 0]
 
 [materials.red]
 kd = [1, 0, 0]
+roughness = 0.25
 
 [[objects]]
 mesh = "../meshes/tri.ply"
@@ -58,6 +59,13 @@ subdivisions = 1
             && names.contains(&"second".to_owned())
             && names.contains(&"sphere".to_owned())
     );
+    let red = scene
+        .world
+        .query::<(&Name, &Material)>()
+        .iter()
+        .find(|(n, _)| n.0 == "red")
+        .map(|(_, m)| m.clone());
+    assert_eq!(red.map(|m| (m.kd, m.roughness)), Some((lucent_geom::Vec3::X, 0.25)));
     // The PLY had no normals: smooth ones were added for shading.
     for m in scene.world.query::<&Mesh>().iter() {
         assert!(m.0.normals().is_some());

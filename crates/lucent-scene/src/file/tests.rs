@@ -55,6 +55,7 @@ ior = 1.1
 
 [materials.wood]
 kd = [0.5, 0.3, 0.1]
+roughness = 0.3
 texture = { file = "wood.png", wrap = "clamp" }
 
 [[objects]]
@@ -96,6 +97,7 @@ fn parses_every_table() {
     );
     assert_eq!(wood.texture.as_ref().map(|t| t.get_ref().file()), Some("wood.png"));
     assert_eq!(d.materials["glass"].ka.map(|c| c.0), None);
+    assert_eq!((wood.roughness, d.materials["glass"].roughness), (0.3, 0.0));
     assert_eq!(d.objects.len(), 2);
     let ball = d.objects[0].get_ref();
     let p = ball.world_from_object().transform_point3(Vec3::X);
@@ -143,6 +145,10 @@ fn unknown_keys_and_bad_values_are_located() {
     assert_eq!(
         check_err("[materials.a]\nkd = [1, 1]\n"),
         "2:6: invalid length 2, expected a colour: a number or [r, g, b]"
+    );
+    assert_eq!(
+        check_err("[materials.a]\nroughness = 1.5\n"),
+        "2:13: roughness must be between 0 and 1"
     );
     assert_eq!(
         check_err("[[objects]]\nshape = \"cube\"\nscale = [1, 0, 1]\n"),

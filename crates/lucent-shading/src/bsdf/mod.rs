@@ -1,0 +1,409 @@
+//! Physically based scattering: BSDFs evaluated, sampled and weighed in a
+//! local shading frame, for the path tracer.
+//!
+//! A [`Bsdf`] is a small fixed mixture of lobes, built per hit and `Copy`:
+//!
+//! | lobe | constructor | delta | sides |
+//! | --- | --- | --- | --- |
+//! | Lambertian diffuse | [`Bsdf::lambertian`] | no | two-sided |
+//! | normalised Phong lobe `(n+2)/(2 pi) cos^n alpha` | [`Bsdf::phong`] | no | two-sided |
+//! | smooth conductor (Fresnel 1) | [`Bsdf::mirror`] | yes | two-sided |
+//! | GGX conductor (Fresnel 1, Smith height-correlated G2, visible-normal sampling) | [`Bsdf::rough_conductor`] | no | two-sided |
+//! | smooth dielectric (exact Fresnel, total internal reflection) | [`Bsdf::dielectric`] | yes (both lobes) | outside = `wo.z > 0` |
+//!
+//! [`Material::bsdf`](crate::Material::bsdf) maps the report's material
+//! parameters onto a mixture of these.
+//!
+//! Conventions: directions are unit vectors in the local frame of a
+//! [`Frame`], whose z axis is the shading normal as stored (not flipped
+//! toward the ray). `wo` points toward the viewer (the negated incoming
+//! ray), `wi` toward the light or next vertex; both point away from the
+//! surface. Transport is of radiance: a refracted sample carries the
+//! `(n_wo / n_wi)^2` factor by which radiance changes across the boundary.
+//! Degenerate input (`wo.z == 0`, NaN, zero vectors) gives zero or `None`;
+//! directions that are not unit are normalised first. Nothing here panics
+//! or allocates.
+//!
+//! ```
+//! use lucent_shading::{Bsdf, Frame, Vec2, Vec3};
+//! let frame = Frame::from_normal(Vec3::Y);
+//! let wo = frame.to_local(Vec3::new(0.0, 1.0, 1.0).normalize());
+//! let bsdf = Bsdf::lambertian(Vec3::splat(0.5));
+//! let s = bsdf.sample(wo, 0.3, Vec2::new(0.25, 0.75)).expect("diffuse always samples");
+//! // Lambertian importance sampling: the weight is the albedo.
+//! assert!(s.weight.abs_diff_eq(Vec3::splat(0.5), 1e-5) && !s.delta);
+//! assert!((bsdf.pdf(wo, s.wi) - s.pdf).abs() < 1e-5);
+//! let to_light = frame.to_world(s.wi);
+//! assert!(to_light.y > 0.0);
+//! ```
+
+mod lobes;
+#[cfg(test)]
+mod stats;
+#[cfg(test)]
+mod tests;
+
+use crate::optics::{fresnel_dielectric, refract};
+use lucent_geom::{Vec2, Vec3};
+
+/// Orthonormal shading frame; local z is the shading normal.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    /// Tangent (local x).
+    pub t: Vec3,
+    /// Bitangent (local y).
+    pub b: Vec3,
+    /// Normal (local z).
+    pub n: Vec3,
+}
+
+impl Frame {
+    /// A right-handed frame around unit normal `n`, built without branches
+    /// on `n` (Duff et al. 2017, "Building an Orthonormal Basis,
+    /// Revisited"); continuous except where `n.z` changes sign. A non-unit
+    /// or NaN `n` gives a frame that is not orthonormal, never a panic.
+    #[inline]
+    pub fn from_normal(n: Vec3) -> Frame {
+        let sign = 1f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let xy = n.x * n.y * a;
+        Frame {
+            t: Vec3::new(1.0 + sign * n.x * n.x * a, sign * xy, -sign * n.x),
+            b: Vec3::new(xy, sign + n.y * n.y * a, -n.y),
+            n,
+        }
+    }
+
+    /// World direction `v` in this frame's coordinates.
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+
+    /// Local direction `v` back in world coordinates.
+    #[inline]
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.t * v.x + self.b * v.y + self.n * v.z
+    }
+}
+
+/// One sampled direction.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    /// The sampled direction in the local frame, unit, pointing away from
+    /// the surface.
+    pub wi: Vec3,
+    /// `f(wo, wi) |cos theta_i| / pdf` for a smooth sample; for a delta
+    /// lobe, the lobe's throughput divided by the probability of choosing
+    /// it.
+    pub weight: Vec3,
+    /// For a smooth sample, the solid-angle density with which `sample`
+    /// returns `wi` through all its non-delta lobes together (what
+    /// [`Bsdf::pdf`] gives); for a delta lobe, the probability of choosing
+    /// that lobe.
+    pub pdf: f32,
+    /// Whether `wi` came from a delta (specular) lobe: such a sample has no
+    /// density to weigh against light sampling, and `eval` is zero for it.
+    pub delta: bool,
+}
+
+/// Index of each lobe in [`Bsdf::cdf`].
+const DIFFUSE: usize = 0;
+const GLOSSY: usize = 1;
+const CONDUCTOR: usize = 2;
+const DIELECTRIC: usize = 3;
+
+/// GGX roughness below which a conductor is treated as a smooth mirror:
+/// the microfacet lobe is then narrower than f32 angles can resolve well.
+pub const MIN_ALPHA: f32 = 1e-4;
+
+/// Largest Phong exponent kept; higher ones are clamped to it.
+const MAX_EXPONENT: f32 = 1e6;
+
+/// A BSDF evaluated at one hit: `Copy`, no allocation, a fixed mixture of
+/// at most one lobe of each kind (diffuse, Phong, conductor, dielectric),
+/// each with an RGB weight.
+///
+/// The mixture's value is the weighted sum of its lobes. `sample` picks one
+/// lobe with a probability proportional to the mean of its weight, then a
+/// direction from it; the returned density of a smooth sample is that of
+/// the whole non-delta mixture, so `weight = eval / pdf` (one-sample
+/// multiple importance sampling over the lobes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bsdf {
+    diffuse: Vec3,
+    glossy: Vec3,
+    exponent: f32,
+    conductor: Vec3,
+    /// GGX alpha of the conductor; 0 means a smooth mirror.
+    alpha: f32,
+    dielectric: Vec3,
+    /// Index of refraction inside over outside.
+    eta: f32,
+    /// Cumulative lobe-selection probabilities, in lobe order; all zero for
+    /// a black BSDF.
+    cdf: [f32; 4],
+}
+
+/// Weights as colours: NaN, infinite and negative components become 0.
+#[inline]
+fn clean(v: Vec3) -> Vec3 {
+    let c = |x: f32| if x.is_finite() && x > 0.0 { x } else { 0.0 };
+    Vec3::new(c(v.x), c(v.y), c(v.z))
+}
+
+/// A usable unit direction with non-zero z, or `None`.
+#[inline]
+fn unit(v: Vec3) -> Option<Vec3> {
+    let u = v.normalize_or_zero();
+    (u.z != 0.0).then_some(u)
+}
+
+impl Bsdf {
+    /// A mixture of lobes; weights are taken as given (callers conserve
+    /// energy), NaN, infinite or negative components read as zero.
+    pub(crate) fn mix(
+        diffuse: Vec3,
+        glossy: Vec3,
+        exponent: f32,
+        conductor: Vec3,
+        alpha: f32,
+        dielectric: Vec3,
+        eta: f32,
+    ) -> Bsdf {
+        let exponent = if exponent.is_nan() {
+            0.0
+        } else {
+            exponent.clamp(0.0, MAX_EXPONENT)
+        };
+        let alpha = if alpha.is_nan() || alpha < MIN_ALPHA {
+            0.0
+        } else {
+            alpha.min(1.0)
+        };
+        let eta = if eta > 0.0 && eta.is_finite() { eta } else { 1.0 };
+        let (diffuse, glossy, conductor, dielectric) =
+            (clean(diffuse), clean(glossy), clean(conductor), clean(dielectric));
+        let mean = |v: Vec3| v.element_sum() / 3.0;
+        let w = [mean(diffuse), mean(glossy), mean(conductor), mean(dielectric)];
+        let total: f32 = w.iter().sum();
+        let mut cdf = [0.0; 4];
+        if total > 0.0 && total.is_finite() {
+            let mut acc = 0.0;
+            for (c, wk) in cdf.iter_mut().zip(w) {
+                acc += wk / total;
+                *c = acc;
+            }
+            // The last lobe with weight ends exactly at 1, as do the empty
+            // ones after it, so rounding never leaves a gap below 1.
+            let last = w.iter().rposition(|&wk| wk > 0.0).unwrap_or(0);
+            for c in &mut cdf[last..] {
+                *c = 1.0;
+            }
+        }
+        // Parameters of absent lobes are zeroed, so equal mixtures compare
+        // equal whatever the unused parameters were.
+        let keep = |k: usize, v: f32, none: f32| if w[k] > 0.0 && total.is_finite() { v } else { none };
+        let (exponent, alpha, eta) = (
+            keep(GLOSSY, exponent, 0.0),
+            keep(CONDUCTOR, alpha, 0.0),
+            keep(DIELECTRIC, eta, 1.0),
+        );
+        Bsdf {
+            diffuse,
+            glossy,
+            exponent,
+            conductor,
+            alpha,
+            dielectric,
+            eta,
+            cdf,
+        }
+    }
+
+    /// Lambertian diffuse reflection with directional albedo `albedo`
+    /// (per channel; two-sided).
+    pub fn lambertian(albedo: Vec3) -> Bsdf {
+        Bsdf::mix(albedo, Vec3::ZERO, 0.0, Vec3::ZERO, 0.0, Vec3::ZERO, 1.0)
+    }
+
+    /// The normalised Phong lobe of Lafortune and Willems 1994 around the
+    /// mirror direction, `reflectance (n + 2) / (2 pi) cos^n alpha`: its
+    /// albedo is `reflectance` at normal incidence and less elsewhere, and
+    /// it is reciprocal. `exponent` is clamped to `[0, 1e6]` (two-sided).
+    pub fn phong(reflectance: Vec3, exponent: f32) -> Bsdf {
+        Bsdf::mix(Vec3::ZERO, reflectance, exponent, Vec3::ZERO, 0.0, Vec3::ZERO, 1.0)
+    }
+
+    /// A smooth conductor with a Fresnel term of 1 (Mitsuba's `conductor`
+    /// with material `none`): a perfect mirror that reflects `reflectance`
+    /// (two-sided).
+    pub fn mirror(reflectance: Vec3) -> Bsdf {
+        Bsdf::mix(Vec3::ZERO, Vec3::ZERO, 0.0, reflectance, 0.0, Vec3::ZERO, 1.0)
+    }
+
+    /// A rough conductor: GGX microfacets of roughness `alpha` (clamped to
+    /// at most 1; below [`MIN_ALPHA`] it is [`Bsdf::mirror`]), Fresnel term
+    /// 1 scaled by `reflectance`, Smith's height-correlated masking and
+    /// shadowing, sampled through the visible normals (two-sided).
+    pub fn rough_conductor(reflectance: Vec3, alpha: f32) -> Bsdf {
+        Bsdf::mix(Vec3::ZERO, Vec3::ZERO, 0.0, reflectance, alpha, Vec3::ZERO, 1.0)
+    }
+
+    /// A smooth dielectric boundary with relative index `eta` = inside over
+    /// outside (the normal points outside; a non-positive or non-finite
+    /// `eta` reads as 1): exact unpolarised Fresnel reflection and Snell
+    /// refraction, total internal reflection from inside past the critical
+    /// angle. Both lobes are delta.
+    pub fn dielectric(eta: f32) -> Bsdf {
+        Bsdf::mix(Vec3::ZERO, Vec3::ZERO, 0.0, Vec3::ZERO, 0.0, Vec3::ONE, eta)
+    }
+
+    /// Probability that `sample` picks lobe `k`.
+    #[inline]
+    fn prob(&self, k: usize) -> f32 {
+        if k == 0 {
+            self.cdf[0]
+        } else {
+            self.cdf[k] - self.cdf[k - 1]
+        }
+    }
+
+    /// Whether the conductor lobe is a smooth mirror.
+    #[inline]
+    fn smooth_conductor(&self) -> bool {
+        self.alpha == 0.0
+    }
+
+    /// True when every lobe with weight is a delta: next-event estimation
+    /// is pointless, and `eval` and `pdf` are zero everywhere. (A black
+    /// BSDF counts as delta too.)
+    pub fn is_delta(&self) -> bool {
+        self.prob(DIFFUSE) == 0.0
+            && self.prob(GLOSSY) == 0.0
+            && (self.prob(CONDUCTOR) == 0.0 || self.smooth_conductor())
+    }
+
+    /// `f(wo, wi) |cos theta_i|` summed over the non-delta lobes (zero for
+    /// a pure delta BSDF, and for degenerate directions).
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        match (unit(wo), unit(wi)) {
+            (Some(wo), Some(wi)) => self.eval_unit(wo, wi),
+            _ => Vec3::ZERO,
+        }
+    }
+
+    fn eval_unit(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let mut f = Vec3::ZERO;
+        if self.prob(DIFFUSE) > 0.0 {
+            f += self.diffuse * lobes::lambert_eval(wo, wi);
+        }
+        if self.prob(GLOSSY) > 0.0 {
+            f += self.glossy * lobes::phong_eval(wo, wi, self.exponent);
+        }
+        if self.prob(CONDUCTOR) > 0.0 && !self.smooth_conductor() {
+            f += self.conductor * lobes::ggx_eval(wo, wi, self.alpha);
+        }
+        if f.is_finite() { f } else { Vec3::ZERO }
+    }
+
+    /// Solid-angle density with which [`sample`](Bsdf::sample) returns
+    /// `wi` through its non-delta lobes, lobe-selection probabilities
+    /// included (zero for a pure delta BSDF and degenerate directions).
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match (unit(wo), unit(wi)) {
+            (Some(wo), Some(wi)) => self.pdf_unit(wo, wi),
+            _ => 0.0,
+        }
+    }
+
+    fn pdf_unit(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let mut p = 0.0;
+        let pd = self.prob(DIFFUSE);
+        if pd > 0.0 {
+            p += pd * lobes::lambert_pdf(wo, wi);
+        }
+        let pg = self.prob(GLOSSY);
+        if pg > 0.0 {
+            p += pg * lobes::phong_pdf(wo, wi, self.exponent);
+        }
+        let pc = self.prob(CONDUCTOR);
+        if pc > 0.0 && !self.smooth_conductor() {
+            p += pc * lobes::ggx_pdf(wo, wi, self.alpha);
+        }
+        if p.is_finite() { p } else { 0.0 }
+    }
+
+    /// Samples `wi` for `wo`: `u_lobe` in `[0, 1)` picks the lobe (and,
+    /// for the dielectric, reflection or refraction), `u` in `[0, 1)^2` the
+    /// direction. `None` when the sample is absorbed (a black BSDF, a lobe
+    /// direction below the surface) or the input is degenerate.
+    pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let wo = unit(wo)?;
+        let k = self.cdf.iter().position(|&c| u_lobe < c)?;
+        let p = self.prob(k);
+        let lo = self.cdf[k] - p;
+        // What is left of `u_lobe` after the lobe choice, again in [0, 1).
+        let u_rest = ((u_lobe - lo) / p).clamp(0.0, 1.0 - f32::EPSILON);
+        let wi = match k {
+            DIFFUSE => lobes::lambert_sample(wo, u),
+            GLOSSY => lobes::phong_sample(wo, u, self.exponent)?,
+            CONDUCTOR if self.smooth_conductor() => {
+                return finite(BsdfSample {
+                    wi: lobes::reflect_z(wo),
+                    weight: self.conductor / p,
+                    pdf: p,
+                    delta: true,
+                });
+            }
+            CONDUCTOR => lobes::ggx_sample(wo, u, self.alpha)?,
+            _ => return self.sample_dielectric(wo, p, u_rest),
+        };
+        let wi = unit(wi)?;
+        let pdf = self.pdf_unit(wo, wi);
+        if pdf <= 0.0 {
+            return None;
+        }
+        finite(BsdfSample {
+            wi,
+            weight: self.eval_unit(wo, wi) / pdf,
+            pdf,
+            delta: false,
+        })
+    }
+
+    /// Reflection with probability `R` (Fresnel), refraction otherwise;
+    /// `p` is the probability that the dielectric lobe was chosen.
+    fn sample_dielectric(&self, wo: Vec3, p: f32, u: f32) -> Option<BsdfSample> {
+        let outside = wo.z > 0.0;
+        // Relative index of the side `wi` refracts into over `wo`'s side.
+        let eta_ti = if outside { self.eta } else { 1.0 / self.eta };
+        let r = fresnel_dielectric(wo.z, eta_ti);
+        if u < r {
+            return finite(BsdfSample {
+                wi: lobes::reflect_z(wo),
+                weight: self.dielectric / p,
+                pdf: p * r,
+                delta: true,
+            });
+        }
+        let n = if outside { Vec3::Z } else { Vec3::NEG_Z };
+        let wi = refract(-wo, n, 1.0 / eta_ti)?.normalize_or_zero();
+        if wi.z * wo.z >= 0.0 {
+            return None;
+        }
+        // Radiance changes by (n_wo / n_wi)^2 across the boundary.
+        finite(BsdfSample {
+            wi,
+            weight: self.dielectric / (p * eta_ti * eta_ti),
+            pdf: p * (1.0 - r),
+            delta: true,
+        })
+    }
+}
+
+/// The sample, if every number in it is finite.
+#[inline]
+fn finite(s: BsdfSample) -> Option<BsdfSample> {
+    (s.wi.is_finite() && s.weight.is_finite() && s.pdf.is_finite() && s.pdf > 0.0).then_some(s)
+}

@@ -1,0 +1,341 @@
+//! Analytic checks of the BSDFs: frames, weights, delta lobes, the
+//! material mapping and hostile input. The statistical tests (chi-square,
+//! reciprocity, energy) are in `stats.rs`.
+
+use super::*;
+use crate::Material;
+use lucent_geom::Pcg32;
+
+/// Local direction at polar angle `theta_deg` in the x-z plane, above the
+/// surface for angles under 90 degrees.
+fn dir(theta_deg: f32) -> Vec3 {
+    let t = theta_deg.to_radians();
+    Vec3::new(t.sin(), 0.0, t.cos())
+}
+
+/// Two mixtures equal up to float rounding.
+fn same(a: Bsdf, b: Bsdf) -> bool {
+    let v = |x: Vec3, y: Vec3| x.abs_diff_eq(y, 1e-6);
+    let s = |x: f32, y: f32| (x - y).abs() <= 1e-6;
+    v(a.diffuse, b.diffuse)
+        && v(a.glossy, b.glossy)
+        && v(a.conductor, b.conductor)
+        && v(a.dielectric, b.dielectric)
+        && s(a.exponent, b.exponent)
+        && s(a.alpha, b.alpha)
+        && s(a.eta, b.eta)
+        && a.cdf.iter().zip(b.cdf).all(|(x, y)| s(*x, y))
+}
+
+#[test]
+fn frames_are_orthonormal_and_round_trip() {
+    let mut rng = Pcg32::new(7, 1);
+    let mut normals = vec![
+        Vec3::Z,
+        Vec3::NEG_Z,
+        Vec3::X,
+        Vec3::Y,
+        Vec3::new(0.0, 0.0, -0.0) + Vec3::NEG_Z,
+    ];
+    for _ in 0..200 {
+        let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        normals.push(v.normalize_or(Vec3::Z));
+    }
+    for n in normals {
+        let f = Frame::from_normal(n);
+        for (a, b) in [(f.t, f.b), (f.b, f.n), (f.n, f.t)] {
+            assert!(a.dot(b).abs() < 1e-5, "{n}");
+        }
+        for v in [f.t, f.b, f.n] {
+            assert!((v.length() - 1.0).abs() < 1e-5, "{n}");
+        }
+        assert!(f.t.cross(f.b).abs_diff_eq(f.n, 1e-5), "right-handed at {n}");
+        let w = Vec3::new(0.3, -0.5, 0.8);
+        assert!(f.to_world(f.to_local(w)).abs_diff_eq(w, 1e-5));
+        assert!(f.to_local(n).abs_diff_eq(Vec3::Z, 1e-5));
+    }
+}
+
+#[test]
+fn lambertian_weight_is_the_albedo_on_both_sides() {
+    let albedo = Vec3::new(0.2, 0.5, 0.9);
+    let bsdf = Bsdf::lambertian(albedo);
+    assert!(!bsdf.is_delta());
+    for wo in [dir(0.0), dir(60.0), dir(89.0), -dir(30.0)] {
+        let s = bsdf.sample(wo, 0.5, Vec2::new(0.3, 0.6));
+        let Some(s) = s else { panic!("no sample for {wo}") };
+        assert!(s.weight.abs_diff_eq(albedo, 1e-5) && !s.delta);
+        assert!(s.wi.z * wo.z > 0.0, "reflects on wo's side");
+        assert!((s.pdf - s.wi.z.abs() / std::f32::consts::PI).abs() < 1e-5);
+        assert!(bsdf.eval(wo, s.wi).abs_diff_eq(albedo * s.pdf, 1e-5));
+        // Nothing passes through.
+        assert_eq!(bsdf.eval(wo, -s.wi), Vec3::ZERO);
+        assert_eq!(bsdf.pdf(wo, -s.wi), 0.0);
+    }
+}
+
+#[test]
+fn mirror_is_a_delta_reflection_on_both_sides() {
+    let k = Vec3::new(0.9, 0.5, 0.1);
+    let bsdf = Bsdf::mirror(k);
+    assert!(bsdf.is_delta());
+    for wo in [dir(0.0), dir(45.0), -dir(70.0)] {
+        let s = bsdf.sample(wo, 0.7, Vec2::new(0.1, 0.9));
+        let Some(s) = s else { panic!("no sample for {wo}") };
+        assert!(s.delta && s.weight.abs_diff_eq(k, 1e-6) && s.pdf == 1.0);
+        assert!(s.wi.abs_diff_eq(Vec3::new(-wo.x, -wo.y, wo.z), 1e-6));
+        assert_eq!(bsdf.eval(wo, s.wi), Vec3::ZERO);
+        assert_eq!(bsdf.pdf(wo, s.wi), 0.0);
+    }
+    // A rough conductor below the smallest alpha is the same mirror.
+    assert_eq!(Bsdf::rough_conductor(k, MIN_ALPHA * 0.5), bsdf);
+    assert!(!Bsdf::rough_conductor(k, 0.2).is_delta());
+}
+
+#[test]
+fn dielectric_reflects_and_refracts_with_fresnel_weights() {
+    let eta = 1.5;
+    let glass = Bsdf::dielectric(eta);
+    assert!(glass.is_delta());
+    // From outside at 45 degrees.
+    let wo = dir(45.0);
+    let r = fresnel_dielectric(wo.z, eta);
+    let refl = glass.sample(wo, r * 0.5, Vec2::ZERO);
+    let Some(refl) = refl else { panic!("reflection") };
+    assert!(refl.delta && refl.wi.abs_diff_eq(Vec3::new(-wo.x, 0.0, wo.z), 1e-6));
+    assert!((refl.pdf - r).abs() < 1e-6 && refl.weight.abs_diff_eq(Vec3::ONE, 1e-6));
+    let refr = glass.sample(wo, 0.5 + 0.5 * r, Vec2::ZERO);
+    let Some(refr) = refr else { panic!("refraction") };
+    assert!(refr.delta && refr.wi.z < 0.0);
+    // Snell: sin_i = eta sin_t, on the far side of the normal.
+    assert!((wo.x - eta * -refr.wi.x).abs() < 1e-5, "{:?}", refr.wi);
+    assert!((refr.pdf - (1.0 - r)).abs() < 1e-6);
+    // Radiance entering the denser medium is divided by eta^2.
+    assert!(refr.weight.abs_diff_eq(Vec3::splat(1.0 / (eta * eta)), 1e-6));
+    // From inside: the way back multiplies by eta^2.
+    let back = glass.sample(refr.wi, 0.999, Vec2::ZERO);
+    let Some(back) = back else { panic!("exit") };
+    assert!(back.wi.abs_diff_eq(wo, 1e-5) && back.weight.abs_diff_eq(Vec3::splat(eta * eta), 1e-4));
+    // Past the critical angle inside, every sample reflects.
+    let critical = (1.0 / eta).asin().to_degrees();
+    let inside = -dir(critical + 2.0);
+    for u in [0.0, 0.5, 0.999_999] {
+        let s = glass.sample(inside, u, Vec2::ZERO);
+        let Some(s) = s else { panic!("TIR") };
+        assert!(s.wi.z < 0.0 && s.pdf == 1.0 && s.weight == Vec3::ONE);
+    }
+    // eta = 1 is invisible: everything goes straight on.
+    let air = Bsdf::dielectric(1.0);
+    let s = air.sample(wo, 0.3, Vec2::ZERO);
+    assert!(s.is_some_and(|s| s.wi.abs_diff_eq(-wo, 1e-6) && s.weight == Vec3::ONE));
+}
+
+#[test]
+fn material_mapping_matches_the_mitsuba_cornell_box() {
+    let red = Material {
+        kd: Vec3::new(0.63, 0.065, 0.05),
+        ..Material::default()
+    };
+    assert!(same(red.bsdf(Vec3::ONE), Bsdf::lambertian(red.kd)));
+    let tint = Vec3::new(0.5, 1.0, 0.25);
+    assert!(same(red.bsdf(tint), Bsdf::lambertian(red.kd * tint)));
+    let mirror = Material {
+        kd: Vec3::ZERO,
+        kr: Vec3::splat(0.9),
+        ..Material::default()
+    };
+    assert!(same(mirror.bsdf(Vec3::ONE), Bsdf::mirror(Vec3::splat(0.9))));
+    let brushed = Material {
+        roughness: 0.5,
+        ..mirror.clone()
+    };
+    assert!(same(
+        brushed.bsdf(Vec3::ONE),
+        Bsdf::rough_conductor(Vec3::splat(0.9), 0.25)
+    ));
+    let glass = Material {
+        kd: Vec3::ZERO,
+        kt: Vec3::ONE,
+        ior: 1.5,
+        ..Material::default()
+    };
+    assert!(same(glass.bsdf(Vec3::ONE), Bsdf::dielectric(1.5)));
+    let light = Material {
+        kd: Vec3::ZERO,
+        emission: Vec3::splat(15.0),
+        ..Material::default()
+    };
+    let black = light.bsdf(Vec3::ONE);
+    assert!(black.is_delta() && black.sample(dir(10.0), 0.5, Vec2::splat(0.5)).is_none());
+    let shiny = Material {
+        kd: Vec3::ZERO,
+        ks: Vec3::splat(0.7),
+        shininess: 20.0,
+        ..Material::default()
+    };
+    assert!(same(shiny.bsdf(Vec3::ONE), Bsdf::phong(Vec3::splat(0.7), 20.0)));
+}
+
+#[test]
+fn material_weights_never_sum_above_one() {
+    let m = Material {
+        kd: Vec3::new(0.8, 0.2, 0.0),
+        ks: Vec3::splat(0.3),
+        kr: Vec3::splat(0.3),
+        kt: Vec3::new(0.2, 0.0, 0.0),
+        ..Material::default()
+    };
+    // The red sum is 1.6: every lobe is divided by it.
+    let b = m.bsdf(Vec3::ONE);
+    let s = 1.0 / 1.6;
+    let expected = Bsdf::mix(m.kd * s, m.ks * s, m.shininess, m.kr * s, 0.0, m.kt * s, m.ior);
+    assert!(same(b, expected), "{b:?}");
+    let sum = b.diffuse + b.glossy + b.conductor + b.dielectric;
+    assert!(sum.max_element() <= 1.0 + 1e-6 && (sum.x - 1.0).abs() < 1e-6);
+    // Over-range and NaN inputs are clamped, never passed on.
+    let wild = Material {
+        kd: Vec3::new(f32::NAN, 5.0, -1.0),
+        ks: Vec3::splat(f32::INFINITY),
+        roughness: f32::NAN,
+        shininess: f32::NAN,
+        ior: f32::NAN,
+        ..Material::default()
+    };
+    let b = wild.bsdf(Vec3::splat(f32::NAN));
+    let sum = b.diffuse + b.glossy + b.conductor + b.dielectric;
+    assert!(sum.is_finite() && sum.max_element() <= 1.0 + 1e-6, "{b:?}");
+}
+
+#[test]
+fn degenerate_input_gives_zero_or_none_never_nan() {
+    let bsdfs = [
+        Bsdf::lambertian(Vec3::splat(0.5)),
+        Bsdf::phong(Vec3::splat(0.5), 30.0),
+        Bsdf::mirror(Vec3::ONE),
+        Bsdf::rough_conductor(Vec3::ONE, 0.3),
+        Bsdf::rough_conductor(Vec3::ONE, 1e-3),
+        Bsdf::dielectric(1.5),
+        Bsdf::dielectric(f32::NAN),
+        Bsdf::phong(Vec3::ONE, f32::INFINITY),
+        Bsdf::lambertian(Vec3::new(f32::INFINITY, 0.5, f32::MAX)),
+        Bsdf::mix(
+            Vec3::splat(f32::MAX),
+            Vec3::splat(f32::MAX),
+            1.0,
+            Vec3::ZERO,
+            0.0,
+            Vec3::ONE,
+            1.5,
+        ),
+        Material {
+            ks: Vec3::splat(0.3),
+            kr: Vec3::splat(0.2),
+            kt: Vec3::splat(0.2),
+            roughness: 0.4,
+            ior: 1.33,
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+    ];
+    let nan = Vec3::splat(f32::NAN);
+    let bad = [
+        Vec3::ZERO,
+        nan,
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 1.0, -0.0),
+        Vec3::splat(f32::INFINITY),
+        Vec3::new(1e30, 1e30, 1e-30),
+        Vec3::new(1e-30, 0.0, 1e-38),
+    ];
+    let good = [dir(30.0), -dir(50.0), Vec3::new(0.0, 3.0, 4.0), dir(89.99)];
+    let us = [0.0, 0.5, 0.999_999, 1.0, -1.0, f32::NAN];
+    for b in &bsdfs {
+        for wo in bad.iter().chain(&good) {
+            for wi in bad.iter().chain(&good) {
+                assert!(
+                    b.eval(*wo, *wi).is_finite() && b.pdf(*wo, *wi).is_finite(),
+                    "{b:?} {wo} {wi}"
+                );
+                assert!(b.pdf(*wo, *wi) >= 0.0 && b.eval(*wo, *wi).min_element() >= 0.0);
+            }
+            for &ul in &us {
+                for &u in &us {
+                    if let Some(s) = b.sample(*wo, ul, Vec2::new(u, 1.0 - u)) {
+                        assert!(s.wi.is_finite() && s.weight.is_finite() && s.pdf.is_finite() && s.pdf > 0.0);
+                        assert!((s.wi.length() - 1.0).abs() < 1e-4, "{b:?} {wo} {s:?}");
+                    }
+                }
+            }
+        }
+        for wo in bad.iter().take(5) {
+            assert!(b.sample(*wo, 0.5, Vec2::splat(0.5)).is_none(), "{b:?} {wo}");
+            assert_eq!(b.eval(*wo, dir(10.0)), Vec3::ZERO);
+        }
+    }
+}
+
+#[test]
+fn ggx_sample_weight_is_g2_over_g1() {
+    // With visible-normal sampling, D and the Jacobian cancel: the weight
+    // of a pure GGX conductor is reflectance * G2(wo, wi) / G1(wo).
+    let k = Vec3::new(0.9, 0.6, 0.3);
+    let mut rng = Pcg32::new(3, 5);
+    for alpha in [0.05, 0.3, 0.8, 1.0] {
+        let b = Bsdf::rough_conductor(k, alpha);
+        for wo in [dir(0.0), dir(40.0), dir(80.0), -dir(60.0)] {
+            for _ in 0..100 {
+                let u = Vec2::new(rng.next_f32(), rng.next_f32());
+                let Some(s) = b.sample(wo, rng.next_f32(), u) else {
+                    continue;
+                };
+                let up = |w: Vec3| Vec3::new(w.x, w.y, w.z.abs());
+                let lambda = |w: Vec3| 1.0 / lobes::ggx_g1(up(w), alpha) - 1.0;
+                let ratio = (1.0 + lambda(wo)) / (1.0 + lambda(wo) + lambda(s.wi));
+                assert!(
+                    s.weight.abs_diff_eq(k * ratio, 1e-3 * ratio.max(1.0)),
+                    "{alpha} {wo} {s:?}"
+                );
+                assert!(s.weight.cmple(k + 1e-5).all(), "never above the reflectance");
+            }
+        }
+    }
+}
+
+#[test]
+fn ggx_distribution_and_visible_normals_are_normalised() {
+    // Projected microfacet area is the macro-surface: integral of
+    // D(h) h.z over the hemisphere = 1; and the visible normals of a
+    // direction w project to its footprint: integral of G1(w) max(0, w.h)
+    // D(h) = w.z. Midpoint rule in (cos theta, phi), with the cosine grid
+    // packed toward the pole where narrow lobes live.
+    for alpha in [0.1f32, 0.3, 0.7, 1.0] {
+        let (nu, nphi) = (4000, 64);
+        let mut d_sum = 0.0f64;
+        let ws = [dir(0.0), dir(50.0), dir(85.0)];
+        let mut vis = [0.0f64; 3];
+        for i in 0..nu {
+            // z = 1 - s^2 packs samples near z = 1; dz = 2 s ds.
+            let s = (i as f64 + 0.5) / nu as f64;
+            let z = 1.0 - s * s;
+            let dz = 2.0 * s / nu as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            for j in 0..nphi {
+                let phi = (j as f64 + 0.5) / nphi as f64 * std::f64::consts::TAU;
+                let h = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                let d = f64::from(lobes::ggx_d(h, alpha));
+                let dw = dz * std::f64::consts::TAU / nphi as f64;
+                d_sum += d * z * dw;
+                for (v, w) in vis.iter_mut().zip(ws) {
+                    *v += f64::from(lobes::ggx_g1(w, alpha)) * f64::from(w.dot(h).max(0.0)) * d * dw;
+                }
+            }
+        }
+        assert!((d_sum - 1.0).abs() < 2e-3, "alpha {alpha}: {d_sum}");
+        for (v, w) in vis.iter().zip(ws) {
+            assert!(
+                (v - f64::from(w.z)).abs() < 2e-3 * f64::from(w.z).max(0.1),
+                "alpha {alpha}, {w}: {v}"
+            );
+        }
+    }
+}
