@@ -56,13 +56,28 @@ pub fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
     if cos_theta_i.is_nan() || !(eta > 0.0 && eta.is_finite()) {
         return 1.0;
     }
-    let cos_i = cos_theta_i.abs().min(1.0);
-    // Snell: sin_t = sin_i / eta.
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t > 1.0 {
-        return 1.0;
+    if eta == 1.0 {
+        // No boundary at all.
+        return 0.0;
     }
-    let cos_t = (1.0 - sin2_t).sqrt();
+    let cos_i = cos_theta_i.abs().min(1.0);
+    // Snell: sin_t = sin_i / eta, so cos^2 t = 1 - (1 - cos^2 i) / eta^2.
+    let cos_t = if eta > 1.0 {
+        // = (1 - 1/eta)(1 + 1/eta) + (cos i / eta)^2: two non-negative
+        // terms, so no cancellation near grazing incidence (1 - sin^2 t
+        // lost every digit there: at eta 1 and cos i = 1e-5 it gave R = 1
+        // instead of 0), and no overflow for huge eta.
+        let inv = 1.0 / eta;
+        ((1.0 - inv) * (1.0 + inv) + (cos_i * inv) * (cos_i * inv)).sqrt()
+    } else {
+        // Dividing by eta twice: eta^2 underflows to 0 below 1e-19, which
+        // made 0 / 0 = NaN at normal incidence.
+        let sin2_t = (1.0 - cos_i * cos_i) / eta / eta;
+        if sin2_t > 1.0 {
+            return 1.0;
+        }
+        (1.0 - sin2_t).sqrt()
+    };
     let s_den = cos_i + eta * cos_t;
     let p_den = eta * cos_i + cos_t;
     if s_den <= 0.0 || p_den <= 0.0 {
@@ -247,5 +262,57 @@ mod tests {
             assert_eq!(fresnel_dielectric(c, e), 1.0, "({c}, {e})");
         }
         assert!(fresnel_dielectric(7.0, 1.5).is_finite());
+    }
+
+    #[test]
+    fn fresnel_at_0_and_90_degrees_against_closed_forms_from_either_side() {
+        // 0 degrees: ((eta - 1) / (eta + 1))^2, the same from inside; 90
+        // degrees: everything reflected. Closed forms in f64.
+        for eta in [1.0001f32, 1.05, 1.5, 2.42, 10.0, 1e3, 1e6, 1e20] {
+            let e = f64::from(eta);
+            let r0 = ((e - 1.0) / (e + 1.0)).powi(2);
+            for (side, got) in [
+                ("outside", fresnel_dielectric(1.0, eta)),
+                ("inside", fresnel_dielectric(1.0, 1.0 / eta)),
+            ] {
+                assert!(
+                    (f64::from(got) - r0).abs() <= 2e-6 * r0.max(1e-3),
+                    "eta {eta} {side}: {got} vs {r0}"
+                );
+            }
+            assert_eq!(fresnel_dielectric(0.0, eta), 1.0, "eta {eta} at 90 degrees");
+        }
+    }
+
+    #[test]
+    fn fresnel_at_index_one_is_zero_at_every_angle() {
+        // The boundary vanishes: nothing is reflected, up to grazing.
+        for k in 0..=100_000 {
+            let cos_i = k as f32 / 100_000.0;
+            let r = fresnel_dielectric(cos_i, 1.0);
+            assert!(r.abs() < 1e-6, "cos {cos_i}: R = {r}");
+        }
+    }
+
+    #[test]
+    fn fresnel_stays_in_0_1_for_extreme_indices() {
+        for eta in [
+            1e-30f32,
+            1e-20,
+            1e-6,
+            1e-3,
+            1e3,
+            1e6,
+            1e20,
+            1e30,
+            f32::MAX,
+            f32::MIN_POSITIVE,
+        ] {
+            for k in 0..=1000 {
+                let cos_i = k as f32 / 1000.0;
+                let r = fresnel_dielectric(cos_i, eta);
+                assert!((0.0..=1.0).contains(&r), "eta {eta}, cos {cos_i}: R = {r}");
+            }
+        }
     }
 }
