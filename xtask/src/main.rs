@@ -6,10 +6,12 @@
 //!   or accept what changed;
 //! - `tidy`: repository rules (also run as a test, see `tidy.rs`);
 //! - `render SCENE [--out FILE.png] [ARGS...]`: render with a release build;
-//! - `view-bench`, `soak`: drive the viewer under Xvfb (see `viewer.rs`).
+//! - `view-bench`, `soak`: drive the viewer under Xvfb (see `viewer.rs`);
+//! - `extremes [FILTER]`: the extremes suite at full size (see `extremes.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
+mod extremes;
 mod tidy;
 mod viewer;
 
@@ -31,7 +33,10 @@ commands:
                            release to first full-resolution frame
   soak [--seconds S] [--seed N] [--size WxH] [--no-build]
                            random input for S seconds (default 60): no panic,
-                           finite camera, flat memory; one JSON line";
+                           finite camera, flat memory; one JSON line
+  extremes [FILTER]        the extremes suite at full size (release build): a 16384-wide
+                           image, 1e6 samples per pixel, 157.5M watertightness rays;
+                           prints every figure";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -42,6 +47,7 @@ fn main() -> ExitCode {
         Some("render") => render(&args[1..]),
         Some("view-bench") => viewer::bench(&args[1..]),
         Some("soak") => viewer::soak(&args[1..]),
+        Some("extremes") => extremes::run_full(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

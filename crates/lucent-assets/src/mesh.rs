@@ -31,27 +31,38 @@ pub fn load_mesh(path: &Path) -> Result<(Vec<MeshPart>, LoadReport), AssetError>
 pub fn load_mesh_from(source: &dyn AssetSource, path: &Path) -> Result<(Vec<MeshPart>, LoadReport), AssetError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let mut report = LoadReport::default();
-    let parts = match ext.as_deref() {
+    let mut parts = match ext.as_deref() {
         Some("obj") => obj::load_obj(source, path, &mut report)?,
         Some("ply") => vec![ply::load_ply(source, path, &mut report)?],
         _ => return Err(AssetError::format(path, "unknown mesh format (expected .obj or .ply)")),
     };
-    for part in &parts {
+    for part in &mut parts {
+        reject_non_finite(path, part, &mut report);
         check_mesh(path, &part.mesh, &mut report);
     }
     Ok((parts, report))
 }
 
+/// Rejects vertices with NaN or infinite coordinates, and with them every
+/// triangle that uses one, with a warning ([`TriMesh::reject_non_finite_vertices`]:
+/// the triangles keep their numbers but are never drawn, bound or used for
+/// normals). Normals computed from such a mesh never saw them either.
+fn reject_non_finite(path: &Path, part: &mut MeshPart, report: &mut LoadReport) {
+    let (n_vertices, n_triangles) = part.mesh.reject_non_finite_vertices();
+    if n_vertices > 0 {
+        report.warn(
+            path,
+            format!(
+                "rejected {n_vertices} vertices with NaN or infinite coordinates and the \
+                 {n_triangles} triangles that use them (they keep their numbers but are never drawn)"
+            ),
+        );
+    }
+}
+
 /// Counts what will not render as the file intends, without dropping it.
 fn check_mesh(path: &Path, mesh: &TriMesh, report: &mut LoadReport) {
     let positions = mesh.positions();
-    let non_finite = positions.iter().filter(|p| !p.is_finite()).count();
-    if non_finite > 0 {
-        report.warn(
-            path,
-            format!("{non_finite} vertices have non-finite coordinates; their triangles are skipped"),
-        );
-    }
     let degenerate = (0..mesh.n_triangles())
         .filter(|&t| lucent_geom::triangle_normal(mesh.triangle(t)).length_squared() == 0.0)
         .count();
@@ -83,5 +94,50 @@ mod tests {
             err,
             Err("a.stl: unknown mesh format (expected .obj or .ply)".to_owned())
         );
+    }
+}
+
+#[cfg(test)]
+mod non_finite_tests {
+    use super::*;
+    use crate::MemorySource;
+    use lucent_geom::{Aabb, Vec3};
+
+    /// A unit square (triangles 0 and 1) plus triangle 2 on a NaN vertex and
+    /// triangle 3 on an infinite one, sharing the square's corners.
+    const OBJ: &[u8] = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv nan 0 0\nv 0 inf 0\n\
+f 1 2 3\nf 1 3 4\nf 3 2 5\nf 4 3 6\n";
+    /// The same in PLY, with -inf.
+    const PLY: &[u8] = b"ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\n\
+property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n\
+0 0 0\n1 0 0\n1 1 0\n0 1 0\nnan 0 0\n0 -inf 0\n3 0 1 2\n3 0 2 3\n3 2 1 4\n3 3 2 5\n";
+
+    #[test]
+    fn non_finite_vertices_are_rejected_with_a_warning_keeping_triangle_numbers() {
+        for (name, bytes) in [("a.obj", OBJ), ("a.ply", PLY)] {
+            let src = MemorySource::new().with_file(name, bytes);
+            let (parts, report) = load_mesh_from(&src, Path::new(name)).unwrap_or_else(|e| panic!("{e}"));
+            let mesh = &parts[0].mesh;
+            assert_eq!(mesh.n_triangles(), 4, "{name}: triangle numbers are kept");
+            assert_eq!(
+                report.warnings,
+                vec![format!(
+                    "{name}: rejected 2 vertices with NaN or infinite coordinates and the 2 triangles \
+                     that use them (they keep their numbers but are never drawn)"
+                )]
+            );
+            // The rejected triangles are all NaN, so nothing downstream
+            // (BVH, bounds, normals) can use them.
+            for t in [2, 3] {
+                assert!(mesh.triangle(t).iter().any(|p| p.is_nan()), "{name}: triangle {t}");
+            }
+            assert_eq!(mesh.bounds(), Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0)), "{name}");
+            let normals = mesh
+                .normals()
+                .map_or_else(|| mesh.compute_smooth_normals(), <[Vec3]>::to_vec);
+            for n in &normals[..4] {
+                assert!(n.abs_diff_eq(Vec3::Z, 1e-6), "{name}: {n}");
+            }
+        }
     }
 }

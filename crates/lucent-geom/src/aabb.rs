@@ -122,17 +122,34 @@ impl Aabb {
     /// Slab test. Returns the entry distance when the ray (given by its
     /// origin and reciprocal direction) overlaps the box within `[0, t_max]`.
     ///
-    /// Rays that lie in a slab plane (0 * inf = NaN) are handled by
-    /// `f32::min`/`max`, which drop a NaN operand.
+    /// A ray parallel to a slab and lying in one of its planes gives
+    /// 0 * inf = NaN for that plane; the slab then does not limit the ray
+    /// (it touches the box's face: the conservative answer). The near and
+    /// far planes are picked by the direction's sign and a NaN never wins a
+    /// comparison, as in the wide tree's four-box test. (Taking `min`/`max`
+    /// of the two planes instead, which drop a NaN operand, made the far
+    /// plane's infinity the entry distance: a ray along a box's edge, such
+    /// as one aimed at the corner of a flat mesh, missed it.)
     #[inline]
     pub fn intersect_ray(&self, origin: Vec3, inv_dir: Vec3, t_max: f32) -> Option<f32> {
-        let t0 = (self.min - origin) * inv_dir;
-        let t1 = (self.max - origin) * inv_dir;
-        let t_near = t0.min(t1);
-        let t_far = t0.max(t1);
-        let enter = t_near.x.max(t_near.y).max(t_near.z).max(0.0);
-        let exit = t_far.x.min(t_far.y).min(t_far.z).min(t_max) * SLAB_ROUNDING;
-        (enter <= exit).then_some(enter)
+        let mut enter = 0.0f32;
+        let mut exit = t_max;
+        for axis in 0..3 {
+            let (near, far) = if inv_dir[axis] < 0.0 {
+                (self.max[axis], self.min[axis])
+            } else {
+                (self.min[axis], self.max[axis])
+            };
+            let a = (near - origin[axis]) * inv_dir[axis];
+            let b = (far - origin[axis]) * inv_dir[axis];
+            if a > enter {
+                enter = a;
+            }
+            if b < exit {
+                exit = b;
+            }
+        }
+        (enter <= exit * SLAB_ROUNDING).then_some(enter)
     }
 }
 
@@ -148,6 +165,21 @@ mod tests {
         assert_eq!(Aabb::EMPTY.union(b), b);
         assert_eq!(Aabb::EMPTY.half_area(), 0.0);
         assert_eq!(b.half_area(), 3.0);
+    }
+
+    #[test]
+    fn rays_along_a_face_or_edge_of_the_box_hit_it() {
+        // A flat box (a single triangle's bounds), and rays along +z through
+        // its corner, along its edges and through its inside.
+        let b = Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0));
+        for (x, y) in [(0.0, 0.0), (1.0, 1.0), (0.0, 0.5), (0.5, 1.0), (0.5, 0.5)] {
+            let o = Vec3::new(x, y, -3.0);
+            assert_eq!(b.intersect_ray(o, Vec3::ONE / Vec3::Z, f32::INFINITY), Some(3.0), "{o}");
+            // Going the other way, or starting outside the slab, misses.
+            assert_eq!(b.intersect_ray(o, Vec3::ONE / -Vec3::Z, f32::INFINITY), None, "{o}");
+        }
+        let outside = Vec3::new(-1e-6, 0.0, -3.0);
+        assert_eq!(b.intersect_ray(outside, Vec3::ONE / Vec3::Z, f32::INFINITY), None);
     }
 
     #[test]

@@ -179,12 +179,49 @@ impl TriMesh {
         ]
     }
 
-    /// Bounding box of the vertices that triangles use.
+    /// Bounding box of the finite vertices that triangles use (one infinite
+    /// vertex would make it infinite, and a camera fitted to it useless).
     pub fn bounds(&self) -> Aabb {
         self.indices
             .iter()
             .flatten()
-            .fold(Aabb::EMPTY, |b, &i| b.grown(self.positions[i as usize]))
+            .map(|&i| self.positions[i as usize])
+            .filter(|p| p.is_finite())
+            .fold(Aabb::EMPTY, Aabb::grown)
+    }
+
+    /// Rejects vertices with a NaN or infinite coordinate: they become NaN
+    /// in all three, so every triangle that uses one is left out of BVHs
+    /// (never hit, never shaded), of bounds and of computed normals, while
+    /// keeping its index, so triangle numbers still match the file. Returns
+    /// how many vertices and triangles were rejected.
+    ///
+    /// ```
+    /// use lucent_geom::{TriMesh, Vec3};
+    /// let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(f32::INFINITY, 0.0, 0.0)];
+    /// let mut m = TriMesh::new(p, vec![[0, 1, 2], [1, 3, 2]])?;
+    /// assert_eq!(m.reject_non_finite_vertices(), (1, 1));
+    /// assert_eq!(m.n_triangles(), 2);
+    /// assert!(m.positions()[3].is_nan() && m.bounds().max == Vec3::new(1.0, 1.0, 0.0));
+    /// # Ok::<(), lucent_geom::MeshError>(())
+    /// ```
+    pub fn reject_non_finite_vertices(&mut self) -> (usize, usize) {
+        let mut n_vertices = 0;
+        for p in &mut self.positions {
+            if !p.is_finite() {
+                *p = Vec3::NAN;
+                n_vertices += 1;
+            }
+        }
+        let n_triangles = if n_vertices == 0 {
+            0
+        } else {
+            self.indices
+                .iter()
+                .filter(|t| t.iter().any(|&i| self.positions[i as usize].is_nan()))
+                .count()
+        };
+        (n_vertices, n_triangles)
     }
 
     /// Area- and angle-weighted vertex normals: each face adds its unit

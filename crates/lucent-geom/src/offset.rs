@@ -17,21 +17,66 @@ use glam::Vec3;
 const ORIGIN_REGION: f32 = 1.0 / 32.0;
 /// Fixed offset used near the origin.
 const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+/// Largest triangle magnitude offset exactly as at unit size.
+const UNIT_MAX: f32 = 4.0;
 /// Number of ulps (times the normal component) used elsewhere.
 const INT_SCALE: f32 = 256.0;
+
+/// Moves a surface point `p` off the surface to the side `n` points to,
+/// for geometry of about unit size: [`offset_ray_origin_scaled`] with a
+/// magnitude of 1.
+///
+/// Near the origin this moves `p` by a fixed 1/65536, which is larger than
+/// a scene a thousand times smaller than unit size can afford; renderers
+/// should pass the triangle's magnitude to [`offset_ray_origin_scaled`].
+#[inline]
+pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+    offset_ray_origin_scaled(p, n, 1.0)
+}
 
 /// Moves a surface point `p` off the surface to the side `n` points to.
 ///
 /// `n` must be the geometric normal (unit length), flipped towards the side
 /// the new ray leaves into: towards the light for shadow rays, the incoming
-/// side for reflection, the far side for refraction.
+/// side for reflection, the far side for refraction. `magnitude` is the
+/// largest absolute coordinate of the triangle hit (its corners in the same
+/// space as `p`), which bounds the rounding error of `p` on every axis,
+/// also on an axis where `p` itself is near zero.
+///
+/// A coordinate far from zero moves by 256 ulps times the normal's
+/// component. Inside the origin region ulps shrink towards zero, so it moves
+/// by a fixed distance instead. For triangles of unit size (`magnitude`
+/// from 1/32 to 4) the region is 1/32 and the distance 1/65536, the
+/// constants of Wachter and Binder; both shrink in proportion for smaller
+/// geometry and grow in proportion for larger (the distance is then 32 ulps
+/// of `magnitude`, several times the rounding error of `p`, which is a few
+/// ulps of the corners). So a scene scaled by `s` is offset by `s` times as
+/// much, from 1e-6 to 1e6, and unit-size scenes exactly as before.
+///
+/// ```
+/// use lucent_geom::{offset_ray_origin_scaled, Vec3};
+/// // A point on a micrometre-sized triangle near the origin.
+/// let p = Vec3::new(1e-6, 0.0, 2e-6);
+/// let q = offset_ray_origin_scaled(p, Vec3::Y, 3e-6);
+/// assert!(q.y > 0.0 && q.y < 1e-8);
+/// ```
 #[inline]
-pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, magnitude: f32) -> Vec3 {
+    // `k` is 1 for unit-size geometry, proportional to the size outside
+    // that range; NaN falls back to 1.
+    let k = if magnitude < ORIGIN_REGION {
+        (magnitude / ORIGIN_REGION).max(0.0)
+    } else if magnitude > UNIT_MAX {
+        magnitude / UNIT_MAX
+    } else {
+        1.0
+    };
+    let (region, fixed) = (ORIGIN_REGION * k, FLOAT_SCALE * k);
     let mut res = p;
     for axis in 0..3 {
         let (pa, na) = (p[axis], n[axis]);
-        res[axis] = if pa.abs() < ORIGIN_REGION {
-            pa + FLOAT_SCALE * na
+        res[axis] = if pa.abs() < region {
+            pa + fixed * na
         } else {
             // `as i32` saturates and maps NaN to 0, so this cannot panic.
             let of = (INT_SCALE * na) as i32;
@@ -61,6 +106,38 @@ mod tests {
                 let rel = ((q - p).abs() / p.abs().max(Vec3::splat(ORIGIN_REGION))).max_element();
                 assert!(rel < 1e-3, "offset too large at scale {scale}: {rel}");
             }
+        }
+    }
+
+    #[test]
+    fn scaled_offsets_follow_the_geometry_from_1e_minus_6_to_1e6() {
+        // A point of a triangle whose corners reach `s`, on an axis where p
+        // is zero (the origin region) and on one where it is not.
+        let n = Vec3::new(0.0, 1.0, 0.0);
+        let rel_at = |s: f32, y: f32| {
+            let p = Vec3::new(0.25 * s, y * s, 0.5 * s);
+            let q = offset_ray_origin_scaled(p, n, s);
+            assert_eq!((q.x, q.z), (p.x, p.z));
+            (q.y - p.y) / s
+        };
+        for s in [1e-6f32, 1e-4, 1e-3, 1.0 / 64.0, 1.0, 4.0, 1e3, 1e6] {
+            for y in [0.0, 0.5] {
+                let rel = rel_at(s, y);
+                // Above the surface by more than the rounding error of a
+                // coordinate of size s (a few ulps, 2^-24 s each), and by
+                // less than 1e-3 of s.
+                assert!(rel > 16.0 * f32::EPSILON && rel < 1e-3, "scale {s}, y {y}: {rel}");
+            }
+        }
+        // Scale invariance below and above unit size.
+        for (a, b) in [(1e-6f32, 1e-3f32), (1e3, 1e6)] {
+            let (ra, rb) = (rel_at(a, 0.0), rel_at(b, 0.0));
+            assert!((ra - rb).abs() <= 1e-5 * rb, "{a}: {ra} vs {b}: {rb}");
+        }
+        // Unit-size geometry: exactly the unit-scale offset.
+        let p = Vec3::new(0.01, 2.0, -0.02);
+        for m in [1.0 / 32.0, 1.0, 4.0, f32::NAN] {
+            assert_eq!(offset_ray_origin_scaled(p, n, m), offset_ray_origin(p, n), "{m}");
         }
     }
 

@@ -6,7 +6,7 @@
 use crate::flat::{FlatBvh, MAX_FLAT_TRIANGLES};
 use crate::lights::LightSet;
 use lucent_accel::{BuildParams, Instance, MeshBvh, SceneBvh};
-use lucent_geom::{Affine3A, Mat3A, TriMesh};
+use lucent_geom::{Affine3A, Mat3A, TriMesh, Vec3};
 use lucent_scene::camera::{Camera, OrbitRig};
 use lucent_scene::components::{Light, Material, MaterialRef, Mesh, MeshRef, Name};
 use lucent_scene::hecs::Entity;
@@ -23,7 +23,7 @@ pub struct RenderInstance {
     pub mesh: u32,
     /// Index into [`RenderScene::materials`].
     pub material: u32,
-    /// Object to world.
+    /// Object to render space (world space moved by `-RenderScene::origin`).
     pub world_from_object: Affine3A,
     /// Transforms object-space normals to world space (inverse transpose).
     pub normal_from_object: Mat3A,
@@ -51,13 +51,20 @@ pub struct RenderScene {
     pub instances: Vec<RenderInstance>,
     /// Instance names, for messages and statistics.
     pub instance_names: Vec<String>,
-    /// Lights, world space.
+    /// Lights, in render space.
     pub lights: Vec<Light>,
     /// Field of view.
     pub camera: Camera,
-    /// Camera pose; the viewer changes it between frames without
-    /// re-extracting.
+    /// Camera pose in world space; the viewer changes it between frames
+    /// without re-extracting.
     pub rig: OrbitRig,
+    /// Where render space's origin lies in world space: near the camera's
+    /// orbit centre at extract time (see [`render_origin`]). Instances and
+    /// lights are moved by `-origin` and the camera is placed relative to
+    /// it, so a scene far from the world origin is traced with small
+    /// coordinates, whose rounding errors and ray offsets are those of a
+    /// scene at the origin.
+    pub origin: Vec3,
     /// Background and ambient light.
     pub environment: Environment,
     /// Two-level BVH over the instances.
@@ -119,6 +126,8 @@ impl std::error::Error for ExtractError {}
 /// on the order hecs stores them in.
 pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
     let (camera, rig) = scene.camera().ok_or(ExtractError::NoCamera)?;
+    let origin = render_origin(&rig);
+    let render_from_world = Affine3A::from_translation(-origin);
     let world = &scene.world;
     let mut rows: Vec<(Entity, Entity, Entity, String)> = world
         .query::<(Entity, &MeshRef, &MaterialRef, Option<&Name>)>()
@@ -147,7 +156,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
                 .map(|m| (*m).clone())
                 .map_err(|_| ExtractError::DanglingMaterial { instance: name.clone() })
         })?;
-        let world_from_object = world_from_local(world, entity);
+        let world_from_object = render_from_world * world_from_local(world, entity);
         let bvh_instance = Instance::new(world_from_object, mesh)
             .ok_or_else(|| ExtractError::SingularTransform { instance: name.clone() })?;
         bvh_instances.push(bvh_instance);
@@ -171,7 +180,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
     let mut lights: Vec<(u64, Light)> = world
         .query::<(Entity, &Light)>()
         .iter()
-        .map(|(e, l)| (e.to_bits().get(), *l))
+        .map(|(e, l)| (e.to_bits().get(), render_space_light(*l, origin)))
         .collect();
     lights.sort_by_key(|l| l.0);
     let lights: Vec<Light> = lights.into_iter().map(|(_, l)| l).collect();
@@ -195,12 +204,37 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         lights,
         camera,
         rig,
+        origin,
         environment: scene.environment,
         bvh,
         features,
         light_set,
         flat_bvh,
     })
+}
+
+/// The origin of render space for a camera rig: its orbit centre rounded
+/// to a multiple of the power of two at or above four orbit radii. Rounding
+/// keeps the origin at zero, and renders unchanged, for scenes the camera
+/// looks at from around the world origin; scenes far away get an origin
+/// within two radii of what the camera looks at. Powers of two keep the
+/// subtraction exact wherever it can be.
+pub fn render_origin(rig: &OrbitRig) -> Vec3 {
+    let rig = rig.sanitized();
+    let grid = 2f32.powi((4.0 * rig.radius).log2().ceil() as i32);
+    let origin = (rig.center / grid).round() * grid;
+    if origin.is_finite() { origin } else { Vec3::ZERO }
+}
+
+/// `light` moved by `-origin`.
+fn render_space_light(light: Light, origin: Vec3) -> Light {
+    match light {
+        Light::Point { position, intensity } => Light::Point {
+            position: position - origin,
+            intensity,
+        },
+        directional @ Light::Directional { .. } => directional,
+    }
 }
 
 /// The index of `entity`'s item in `items`, fetching and appending it the
@@ -229,6 +263,15 @@ impl RenderScene {
             .sum()
     }
 
+    /// The camera rig in render space ([`RenderScene::origin`] subtracted).
+    pub fn render_rig(&self) -> OrbitRig {
+        let rig = self.rig.sanitized();
+        OrbitRig {
+            center: rig.center - self.origin,
+            ..rig
+        }
+    }
+
     /// Triangles stored (each shared mesh once).
     pub fn n_unique_triangles(&self) -> usize {
         self.meshes.iter().map(|m| m.n_triangles()).sum()
@@ -238,7 +281,7 @@ impl RenderScene {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lucent_geom::{Vec3, shapes};
+    use lucent_geom::shapes;
 
     fn scene() -> (Scene, Entity, Entity) {
         let mut scene = Scene::default();
@@ -266,6 +309,47 @@ mod tests {
         assert_eq!((rs.n_instanced_triangles(), rs.n_unique_triangles()), (160, 80));
         assert_eq!(rs.instance_names, vec!["a".to_owned(), "b".to_owned()]);
         assert!(rs.features.transmissive && !rs.features.reflective && !rs.features.textured);
+    }
+
+    #[test]
+    fn render_space_starts_near_a_far_camera_and_at_zero_near_the_origin() {
+        let rig = |center: Vec3, radius: f32| OrbitRig {
+            center,
+            radius,
+            ..OrbitRig::default()
+        };
+        // Around the world origin nothing moves (renders stay as they were).
+        assert_eq!(render_origin(&rig(Vec3::new(0.0, 0.55, 0.0), 5.2)), Vec3::ZERO);
+        assert_eq!(render_origin(&rig(Vec3::splat(7.0), 5.2)), Vec3::ZERO);
+        // Far away the origin is a multiple of 32 (the power of two at or
+        // above 4 R) within R of the centre on each axis.
+        let far = Vec3::new(1e6 + 0.35, -1e6, 123_456.7);
+        let o = render_origin(&rig(far, 5.2));
+        assert!((o - far).abs().max_element() <= 16.0, "{o}");
+        assert_eq!(o % 32.0, Vec3::ZERO);
+        assert_eq!(render_origin(&rig(Vec3::NAN, 1.0)), Vec3::ZERO);
+
+        // Extract moves instances and point lights by -origin, and the
+        // camera follows: the render-space rig looks at the same place.
+        let (mut scene, _, _) = scene();
+        scene.add_light(
+            "bulb",
+            Light::Point {
+                position: far + Vec3::Y,
+                intensity: Vec3::ONE,
+            },
+        );
+        if let Some(mut r) = scene.camera_rig_mut() {
+            r.center = far;
+        }
+        let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(rs.origin, o);
+        assert_eq!(
+            rs.instances[1].world_from_object.translation,
+            (Vec3::X * 3.0 - o).into()
+        );
+        assert_eq!(rs.render_rig().center, far - o);
+        assert!(matches!(rs.lights[0], Light::Point { position, .. } if position == far + Vec3::Y - o));
     }
 
     #[test]

@@ -41,7 +41,7 @@ mod render;
 pub mod whitted;
 
 pub use camera::PinholeCamera;
-pub use extract::{ExtractError, RenderInstance, RenderScene, SceneFeatures, extract};
+pub use extract::{ExtractError, RenderInstance, RenderScene, SceneFeatures, extract, render_origin};
 pub use film::{Film, ImageStats};
 pub use lucent_scene::{Integrator, RenderSettings, Shading};
 pub use render::{

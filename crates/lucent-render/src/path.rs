@@ -25,14 +25,15 @@
 //! report's ambient term does not exist here.
 //!
 //! Secondary and shadow rays start at the hit point pushed off the surface
-//! along the geometric normal, to the side the new ray leaves into
-//! ([`offset_ray_origin`]); shadow rays toward an area light stop just short
-//! of the sampled point.
+//! along the geometric normal, to the side the new ray leaves into, by an
+//! amount scaled to the triangle's coordinates
+//! ([`offset_ray_origin_scaled`]); shadow rays toward an area light stop
+//! just short of the sampled point.
 
 use crate::lights::LightSet;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
-use lucent_geom::{Pcg32, Ray, Vec2, Vec3, offset_ray_origin, triangle_normal};
+use lucent_geom::{Pcg32, Ray, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
 use lucent_shading::{Bsdf, Frame};
 
 /// Russian roulette starts once a path has this many bounces, as with
@@ -65,6 +66,8 @@ struct Hit {
     uv: Option<Vec2>,
     /// Vertex colour, if the mesh has colours.
     color: Option<Vec3>,
+    /// Largest corner coordinate magnitude, which scales ray offsets.
+    magnitude: f32,
 }
 
 impl<'a> PathTracer<'a> {
@@ -150,7 +153,7 @@ impl<'a> PathTracer<'a> {
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
                     let side = if ls.wi.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
-                    let origin = offset_ray_origin(hit.p, side);
+                    let origin = offset_ray_origin_scaled(hit.p, side, hit.magnitude);
                     let t_max = if ls.distance.is_finite() {
                         (ls.point - origin).length() * (1.0 - SHADOW_SHORTEN)
                     } else {
@@ -190,7 +193,8 @@ impl<'a> PathTracer<'a> {
                 stats.reflection += 1;
             }
             let out = wi.dot(hit.ng) >= 0.0;
-            ray = Ray::new(offset_ray_origin(hit.p, if out { hit.ng } else { -hit.ng }), wi);
+            let side = if out { hit.ng } else { -hit.ng };
+            ray = Ray::new(offset_ray_origin_scaled(hit.p, side, hit.magnitude), wi);
             prev_p = hit.p;
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
@@ -253,7 +257,15 @@ impl<'a> PathTracer<'a> {
             let [ca, cb, cc] = idx.map(|i| col[i as usize]);
             ca * bary.x + cb * bary.y + cc * bary.z
         });
-        Some(Hit { p, ng, ns, uv, color })
+        let magnitude = [a, b, c].iter().fold(0.0f32, |m, q| m.max(q.abs().max_element()));
+        Some(Hit {
+            p,
+            ng,
+            ns,
+            uv,
+            color,
+            magnitude,
+        })
     }
 }
 

@@ -170,7 +170,7 @@ fn trace_rows(
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> RayStats {
-    let camera = PinholeCamera::new(&scene.camera, &scene.rig, film.width(), film.height());
+    let camera = PinholeCamera::new(&scene.camera, &scene.render_rig(), film.width(), film.height());
     let tracer = match settings.integrator {
         Integrator::Whitted => Tracer::Whitted(Whitted::new(scene, settings)),
         Integrator::Path => Tracer::Path(PathTracer::new(scene, settings)),
@@ -198,13 +198,13 @@ fn trace_rows(
                                 (rng.next_f32(), rng.next_f32())
                             };
                             let ray = camera.ray(col as f32 + jx, row as f32 + jy);
-                            *px += whitted.trace_primary(ray, &mut stats);
+                            *px += whitted.trace_primary(ray, &mut stats).as_dvec3();
                         }
                         Tracer::Path(path) => {
                             // Every sample uniform over the pixel: a box filter.
                             let (jx, jy) = (rng.next_f32(), rng.next_f32());
                             let ray = camera.ray(col as f32 + jx, row as f32 + jy);
-                            *px += path.trace_primary(ray, &mut rng, &mut stats);
+                            *px += path.trace_primary(ray, &mut rng, &mut stats).as_dvec3();
                         }
                     }
                 }

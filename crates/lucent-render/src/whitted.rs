@@ -26,12 +26,13 @@
 //!
 //! Secondary rays start at the hit point pushed off the surface along the
 //! geometric normal by an amount scaled to the point's floating-point error
-//! ([`lucent_geom::offset_ray_origin`]), never by skipping the last object
+//! ([`lucent_geom::offset_ray_origin_scaled`], scaled to the triangle's
+//! size so that scenes from 1e-6 to 1e6 units behave alike), never by skipping the last object
 //! hit: concave meshes can shadow and reflect themselves.
 
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
-use lucent_geom::{Ray, Vec2, Vec3, offset_ray_origin, triangle_normal};
+use lucent_geom::{Ray, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
 use lucent_scene::Shading;
 use lucent_shading::optics::{reflect, refract};
 use lucent_shading::phong::{PhongTerms, combine, phong_terms};
@@ -59,6 +60,8 @@ struct Surface {
     bary: Vec3,
     /// Corner positions.
     corners: [Vec3; 3],
+    /// Largest absolute corner coordinate: the scale of `p`'s rounding error.
+    magnitude: f32,
     /// Corner shading normals (flipped with `ng`), if the mesh has normals.
     corner_normals: Option<[Vec3; 3]>,
     /// Interpolated texture coordinates, if the mesh has them.
@@ -102,7 +105,7 @@ impl<'a> Whitted<'a> {
         let w_reflect = weight * material.kr.max_element();
         if material.is_reflective() && w_reflect >= self.min_weight {
             stats.reflection += 1;
-            let mirrored = Ray::new(offset_ray_origin(surf.p, surf.ng), mirror_dir(ray.dir, &surf));
+            let mirrored = Ray::new(surf.offset(surf.p, surf.ng), mirror_dir(ray.dir, &surf));
             color += material.kr * self.trace(&mirrored, depth + 1, w_reflect, stats);
         }
         // Step: transmission (Snell refraction, or total internal reflection).
@@ -114,8 +117,8 @@ impl<'a> Whitted<'a> {
                 .filter(|t| t.dot(surf.ng) < 0.0)
                 .or_else(|| refract(ray.dir, surf.ng, eta));
             let next = match refracted {
-                Some(t) => Ray::new(offset_ray_origin(surf.p, -surf.ng), t.normalize()),
-                None => Ray::new(offset_ray_origin(surf.p, surf.ng), mirror_dir(ray.dir, &surf)),
+                Some(t) => Ray::new(surf.offset(surf.p, -surf.ng), t.normalize()),
+                None => Ray::new(surf.offset(surf.p, surf.ng), mirror_dir(ray.dir, &surf)),
             };
             color += material.kt * self.trace(&next, depth + 1, w_transmit, stats);
         }
@@ -201,7 +204,7 @@ impl<'a> Whitted<'a> {
         } else {
             -surf.ng
         };
-        let ray = Ray::new(offset_ray_origin(smooth_point(surf), side), ls.to_light);
+        let ray = Ray::new(surf.offset(smooth_point(surf), side), ls.to_light);
         let bvh = &self.scene.bvh;
         if !self.scene.features.transmissive {
             return if bvh.occluded(&ray, ls.distance) {
@@ -253,8 +256,10 @@ impl<'a> Whitted<'a> {
             .unwrap_or(ng);
         let uv = mesh.uvs().map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary));
         let color = mesh.colors().map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
+        let magnitude = corners.iter().fold(0.0f32, |m, c| m.max(c.abs().max_element()));
         Surface {
             p,
+            magnitude,
             ng,
             ns,
             front,
@@ -265,6 +270,15 @@ impl<'a> Whitted<'a> {
             color,
             material: inst.material,
         }
+    }
+}
+
+impl Surface {
+    /// `q` (the hit point or a point near it) moved off this surface to the
+    /// side of `n`, by a distance scaled to the triangle's coordinates.
+    #[inline]
+    fn offset(&self, q: Vec3, n: Vec3) -> Vec3 {
+        offset_ray_origin_scaled(q, n, self.magnitude)
     }
 }
 

@@ -21,8 +21,9 @@ use lucent_geom::{Affine3A, Mat3A, Vec3, Vec3A};
 /// Elevation limit: the rig keeps `|theta|` at most this far from the
 /// horizon (89.9 degrees), so the frame never degenerates at the poles.
 pub const THETA_LIMIT: f32 = 89.9 * std::f32::consts::PI / 180.0;
-/// Smallest orbit radius.
-pub const MIN_RADIUS: f32 = 1e-4;
+/// Smallest orbit radius: small enough to frame a scene of 1e-6 units
+/// (1e-4, the earlier limit, pulled such a camera far out of its scene).
+pub const MIN_RADIUS: f32 = 1e-9;
 /// Largest orbit radius.
 pub const MAX_RADIUS: f32 = 1e7;
 
@@ -58,7 +59,14 @@ pub struct Intrinsics {
 impl Camera {
     /// Intrinsics for a `width` x `height` image.
     pub fn intrinsics(&self, width: u32, height: u32) -> Intrinsics {
-        let fov = self.fov_y_deg.clamp(1e-3, 179.999).to_radians();
+        // A NaN field of view would make every ray NaN (a picture of only
+        // the background); like the rig, it falls back to the default.
+        let fov_deg = if self.fov_y_deg.is_nan() {
+            Camera::default().fov_y_deg
+        } else {
+            self.fov_y_deg
+        };
+        let fov = fov_deg.clamp(1e-3, 179.999).to_radians();
         let fy = 0.5 * height as f32 / (0.5 * fov).tan();
         Intrinsics {
             fx: fy,
@@ -152,6 +160,16 @@ impl OrbitRig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn absurd_fields_of_view_give_finite_intrinsics() {
+        for fov in [f32::NAN, f32::INFINITY, -f32::INFINITY, 0.0, -5.0, 1e-30, 180.0, 1e9] {
+            let k = Camera { fov_y_deg: fov }.intrinsics(33, 33);
+            assert!(k.fx.is_finite() && k.fx > 0.0 && k.fx == k.fy, "{fov}: {k:?}");
+        }
+        let nan = Camera { fov_y_deg: f32::NAN }.intrinsics(300, 300);
+        assert_eq!(nan, Camera::default().intrinsics(300, 300));
+    }
 
     #[test]
     fn report_intrinsics_for_300_square_at_90_degrees() {

@@ -304,7 +304,7 @@ fn warnings_for_short_faces_and_non_finite_vertices() {
     assert!(parts[0].mesh.positions()[2].x.is_nan(), "not dropped");
     assert_eq!(report.warnings.len(), 2, "{:?}", report.warnings);
     assert!(report.warnings[0].contains("1 faces have fewer than 3 vertices"));
-    assert!(report.warnings[1].contains("1 vertices have non-finite coordinates"));
+    assert!(report.warnings[1].contains("rejected 1 vertices with NaN or infinite coordinates"));
 }
 
 #[test]

@@ -458,6 +458,7 @@ fn shadow_rays_through_a_shared_edge_attenuate_once() {
             front: true,
             bary: Vec3::new(1.0, 0.0, 0.0),
             corners: [p; 3],
+            magnitude: 1.0,
             corner_normals: None,
             uv: None,
             color: None,

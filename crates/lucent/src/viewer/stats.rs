@@ -40,6 +40,13 @@ impl FrameReport<'_> {
                 "null".to_owned()
             }
         };
+        // The radius spans 1e-9 to 1e7: all its digits, not six decimals
+        // (which printed the smallest radii as 0).
+        let radius = if r.radius.is_finite() {
+            format!("{:e}", r.radius)
+        } else {
+            "null".to_owned()
+        };
         let mut s = String::with_capacity(320);
         let _ = write!(
             s,
@@ -61,7 +68,7 @@ impl FrameReport<'_> {
             f.generation,
             self.preset,
             self.shading,
-            num(f64::from(r.radius)),
+            radius,
             num(f64::from(r.theta)),
             num(f64::from(r.phi)),
             num(f64::from(r.center.x)),
@@ -142,7 +149,7 @@ mod tests {
             "\"width\":320,\"height\":180,\"scale\":2.000000,",
             "\"samples\":1,\"refined\":false,\"moving\":true,",
             "\"generation\":7,",
-            "\"camera\":{\"R\":3.000000,\"theta\":0.250000,\"phi\":1.500000,\"O\":[1.000000,-2.000000,0.500000]}}",
+            "\"camera\":{\"R\":3e0,\"theta\":0.250000,\"phi\":1.500000,\"O\":[1.000000,-2.000000,0.500000]}}",
         ] {
             assert!(line.contains(field), "{field} in {line}");
         }
