@@ -14,7 +14,7 @@ use lucent_scene::{Environment, Scene, world_from_local};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::fmt;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// One placed mesh, ready for shading.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -73,10 +73,10 @@ pub struct RenderScene {
     pub features: SceneFeatures,
     /// Emissive triangles and lights, as the path tracer samples them.
     pub light_set: LightSet,
-    /// Every instance's triangles in one world-space BVH, which the path
-    /// tracer queries instead of `bvh` (absent for heavily instanced or
-    /// huge scenes; see [`FlatBvh::build`]).
-    pub flat_bvh: Option<FlatBvh>,
+    /// Every instance's triangles in one render-space BVH, built the first
+    /// time [`RenderScene::flat_bvh`] asks for it (only the path tracer
+    /// does, so Whitted renders and the viewer's start do not pay for it).
+    flat_bvh: OnceLock<Option<FlatBvh>>,
 }
 
 /// Why a scene could not be extracted.
@@ -175,7 +175,6 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         .map(|m| Arc::new(MeshBvh::build(m, &params)))
         .collect();
     let bvh = SceneBvh::build(blas, bvh_instances, &params);
-    let flat_bvh = FlatBvh::build(&meshes, &instances, &params, MAX_FLAT_TRIANGLES);
 
     let mut lights: Vec<(u64, Light)> = world
         .query::<(Entity, &Light)>()
@@ -209,7 +208,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         bvh,
         features,
         light_set,
-        flat_bvh,
+        flat_bvh: OnceLock::new(),
     })
 }
 
@@ -255,6 +254,24 @@ fn intern<T>(
 }
 
 impl RenderScene {
+    /// Every instance's triangles in one render-space BVH, which the path
+    /// tracer queries instead of the two-level [`RenderScene::bvh`]: built
+    /// on the first call (a clone made after that keeps its own copy of the
+    /// tree), `None` for heavily instanced or huge scenes (see
+    /// [`FlatBvh::build`]).
+    pub fn flat_bvh(&self) -> Option<&FlatBvh> {
+        self.flat_bvh
+            .get_or_init(|| {
+                FlatBvh::build(
+                    &self.meshes,
+                    &self.instances,
+                    &BuildParams::default(),
+                    MAX_FLAT_TRIANGLES,
+                )
+            })
+            .as_ref()
+    }
+
     /// Triangles over all instances.
     pub fn n_instanced_triangles(&self) -> usize {
         self.instances

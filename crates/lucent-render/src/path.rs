@@ -30,6 +30,7 @@
 //! ([`offset_ray_origin_scaled`]); shadow rays toward an area light stop
 //! just short of the sampled point.
 
+use crate::flat::FlatBvh;
 use crate::lights::LightSet;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
@@ -48,6 +49,8 @@ const SHADOW_SHORTEN: f32 = 1e-4;
 /// A path tracer over one scene with fixed settings.
 pub struct PathTracer<'a> {
     scene: &'a RenderScene,
+    /// The scene's one-level tree, when it has one.
+    flat: Option<&'a FlatBvh>,
     max_depth: u32,
     /// Per material, its BSDF when nothing varies over the surface (no
     /// texture): built once per render, not at every hit.
@@ -80,6 +83,7 @@ impl<'a> PathTracer<'a> {
             .collect();
         Self {
             scene,
+            flat: scene.flat_bvh(),
             max_depth: settings.max_depth,
             plain_bsdfs,
         }
@@ -216,7 +220,7 @@ impl<'a> PathTracer<'a> {
     /// Closest hit, through the flat tree when the scene has one.
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
-        match &self.scene.flat_bvh {
+        match self.flat {
             Some(flat) => flat.intersect(ray, f32::INFINITY),
             None => self.scene.bvh.intersect(ray, f32::INFINITY),
         }
@@ -225,7 +229,7 @@ impl<'a> PathTracer<'a> {
     /// Whether anything blocks `ray` before `t_max`.
     #[inline]
     fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        match &self.scene.flat_bvh {
+        match self.flat {
             Some(flat) => flat.occluded(ray, t_max),
             None => self.scene.bvh.occluded(ray, t_max),
         }
