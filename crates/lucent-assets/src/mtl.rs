@@ -6,7 +6,8 @@
 //! mirror weight `kr = Ks`) and map_Kd with `-s` (uv scale), `-o` (uv
 //! offset) and `-clamp on|off`; other options are read past with a
 //! warning. A missing MTL, material or texture is a warning and shows in
-//! magenta, never an error.
+//! magenta, never an error; a texture's warning says which case it is (the
+//! file does not exist, is a directory, or is not a usable image).
 
 use crate::{AssetSource, LoadReport, load_texture, normalize_path};
 use lucent_geom::{Vec2, Vec3};
@@ -163,8 +164,13 @@ fn convert_material(
                     Ok(t) => Arc::new(t),
                     Err(e) => {
                         report.warn(
-                            &tex_path,
-                            format!("{e}; material '{}' shows a checkerboard instead", m.name),
+                            mtl_path,
+                            format!(
+                                "material '{}': texture '{}': {}; it shows a checkerboard instead",
+                                m.name,
+                                map.file,
+                                crate::image_io::texture_problem(&e)
+                            ),
                         );
                         Arc::new(missing_texture())
                     }
