@@ -6,10 +6,13 @@
 //!   or accept what changed;
 //! - `tidy`: repository rules (also run as a test, see `tidy.rs`);
 //! - `render SCENE [--out FILE.png] [ARGS...]`: render with a release build;
-//! - `view-bench`, `soak`: drive the viewer under Xvfb (see `viewer.rs`).
+//! - `view-bench`, `soak`: drive the viewer under Xvfb (see `viewer.rs`);
+//! - `fuzz [TARGET...] [--runs N] [--time S]`: build and run the fuzz
+//!   targets in `fuzz/` (see `fuzz.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
+mod fuzz;
 mod tidy;
 mod viewer;
 
@@ -31,7 +34,13 @@ commands:
                            release to first full-resolution frame
   soak [--seconds S] [--seed N] [--size WxH] [--no-build]
                            random input for S seconds (default 60): no panic,
-                           finite camera, flat memory; one JSON line";
+                           finite camera, flat memory; one JSON line
+  fuzz [TARGET...] [--runs N] [--time S] [--max-len B] [--rss-mb M] [--no-build]
+                           build the fuzz targets (obj ply mtl scene texture; all
+                           by default) with cargo-fuzz and run each in turn until
+                           N executions (default 10000000) or S seconds (3600);
+                           crashes are kept in fuzz/artifacts and fuzzing goes on;
+                           figures in fuzz/logs/summary.tsv. Not part of CI";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -42,6 +51,7 @@ fn main() -> ExitCode {
         Some("render") => render(&args[1..]),
         Some("view-bench") => viewer::bench(&args[1..]),
         Some("soak") => viewer::soak(&args[1..]),
+        Some("fuzz") => fuzz::fuzz(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

@@ -1,0 +1,15 @@
+//! Fuzzes the MTL reader: the input is `m.mtl`, the material library of a
+//! small fixed OBJ that uses materials `a` and `b` (a texture `t.png`
+//! exists beside it).
+#![no_main]
+
+use lucent_fuzz::FuzzSource;
+use std::path::Path;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let source = FuzzSource {
+        input_path: Path::new("m.mtl"),
+        input: data,
+    };
+    let _ = lucent_assets::load_mesh_from(&source, Path::new("a.obj"));
+});

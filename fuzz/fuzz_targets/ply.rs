@@ -1,0 +1,14 @@
+//! Fuzzes the PLY loader (header through ply-rs, ASCII and binary bodies).
+#![no_main]
+
+use lucent_fuzz::FuzzSource;
+use std::path::Path;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let path = Path::new("x.ply");
+    let source = FuzzSource {
+        input_path: path,
+        input: data,
+    };
+    let _ = lucent_assets::load_mesh_from(&source, path);
+});

@@ -1,0 +1,9 @@
+//! Fuzzes texture decoding (PNG and JPEG through the image crate, then sRGB
+//! to linear).
+#![no_main]
+
+use std::path::Path;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let _ = lucent_assets::texture_from_bytes(data, Path::new("t.png"));
+});
