@@ -11,5 +11,6 @@ libfuzzer_sys::fuzz_target!(|data: &[u8]| {
         input_path: path,
         input: data,
     };
-    let _ = lucent_assets::load_scene_from(&source, path);
+    let result = lucent_assets::load_scene_from(&source, path);
+    lucent_fuzz::check_names_file(&result, "s/scene.toml");
 });

@@ -5,5 +5,6 @@
 use std::path::Path;
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = lucent_assets::texture_from_bytes(data, Path::new("t.png"));
+    let result = lucent_assets::texture_from_bytes(data, Path::new("t.png"));
+    lucent_fuzz::check_names_file(&result, "t.png: ");
 });

@@ -9,6 +9,17 @@ use std::borrow::Cow;
 use std::path::Path;
 use std::sync::OnceLock;
 
+/// What the fuzzers check beyond "no panic, no hang, no blow-up": an error
+/// names the file it is about first (`path`, `path:line` or
+/// `path: byte N`), as every `AssetError` must. Panics otherwise, which
+/// libFuzzer reports as a crash.
+pub fn check_names_file<T>(result: &Result<T, AssetError>, path: &str) {
+    if let Err(e) = result {
+        let text = e.to_string();
+        assert!(text.starts_with(path), "the error does not start with {path}: {text}");
+    }
+}
+
 /// A small OBJ: two triangles with texture coordinates, normals and a
 /// material from `m.mtl`.
 pub const OBJ: &[u8] = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\n\
