@@ -16,6 +16,7 @@ use crate::mtl::{MaterialSet, fallback_material, load_materials};
 use crate::{AssetError, AssetSource, LoadReport, Location, MeshPart};
 use lucent_geom::{TriMesh, Vec2, Vec3};
 use lucent_shading::color::srgb_to_linear;
+use std::collections::HashSet;
 use std::path::Path;
 
 /// No index (a corner without uv or normal, or an empty chain).
@@ -93,7 +94,10 @@ pub(crate) fn load_obj(
     let mut unifier = Unifier::new(parsed.positions.len());
     let mut parts = Vec::with_capacity(parsed.parts.len());
     let mut short_faces = 0;
+    // In order of first use; the set keeps the check linear when a file
+    // names many materials its MTL lacks.
     let mut missing_materials: Vec<&str> = Vec::new();
+    let mut missing_seen: HashSet<&str> = HashSet::new();
     for rec in &parsed.parts {
         let built = build_part(&parsed, rec, &mut unifier, &mut short_faces)
             .map_err(|(line, message)| AssetError::at(path, Location::Line(line), message))?;
@@ -103,7 +107,7 @@ pub(crate) fn load_obj(
         let material = rec.material.as_ref().map(|name| match materials.get(name) {
             Some(m) => m.clone(),
             None => {
-                if !missing_materials.contains(&name.as_str()) {
+                if missing_seen.insert(name.as_str()) {
                     missing_materials.push(name);
                 }
                 fallback_material()
@@ -122,7 +126,7 @@ pub(crate) fn load_obj(
             path,
             format!(
                 "material(s) {} not found in its MTL files; shown in magenta",
-                missing_materials.join(", ")
+                name_list(&missing_materials)
             ),
         );
     }
@@ -133,6 +137,18 @@ pub(crate) fn load_obj(
         );
     }
     Ok(parts)
+}
+
+/// At most this many names are listed in one warning.
+const LISTED_NAMES: usize = 10;
+
+/// `a, b, c`, or the first [`LISTED_NAMES`] and how many more.
+fn name_list(names: &[&str]) -> String {
+    let shown = names[..names.len().min(LISTED_NAMES)].join(", ");
+    match names.len().checked_sub(LISTED_NAMES) {
+        Some(more) if more > 0 => format!("{shown} and {more} more"),
+        _ => shown,
+    }
 }
 
 /// The line without its comment: a `#` at the start of a word begins one

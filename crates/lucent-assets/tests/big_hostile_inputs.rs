@@ -1,0 +1,55 @@
+//! Big hostile inputs that once took quadratic time, through the public
+//! API: an OBJ naming 200 000 materials its MTL lacks (a list scanned per
+//! part: 2e10 string comparisons, minutes) and a PLY header of 25 000
+//! elements (a duplicate check scanned per element: 12.6 s for 30 000 in
+//! the fuzz build). Found by feeding the fuzz targets files far bigger than
+//! their 4 KiB inputs. The tests assert what is loaded and reported; a
+//! quadratic loader would make them run for minutes, not fail quickly,
+//! the same bargain as `long_lines_and_headers_read_in_linear_time`.
+
+use lucent_assets::{MemorySource, load_mesh_from};
+use std::fmt::Write as _;
+use std::path::Path;
+
+#[test]
+fn many_missing_materials_are_reported_once_each_in_one_short_warning() {
+    let n = 200_000;
+    let mut obj = String::from("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    for i in 0..n {
+        let _ = write!(obj, "usemtl m{i}\nf 1 2 3\nusemtl a\nf 1 2 3\n");
+    }
+    let src = MemorySource::new()
+        .with_file("x.obj", obj.into_bytes().leak())
+        .with_file("m.mtl", b"newmtl a\nKd 1 0 0\n");
+    let loaded = load_mesh_from(&src, Path::new("x.obj"));
+    let Ok((parts, report)) = loaded else {
+        panic!("{:?}", loaded.map(|_| ()));
+    };
+    assert_eq!(parts.len(), 2 * n);
+    assert_eq!(
+        report.warnings,
+        vec![format!(
+            "x.obj: material(s) m0, m1, m2, m3, m4, m5, m6, m7, m8, m9 and {} more not found in its MTL files; \
+             shown in magenta",
+            n - 10
+        )]
+    );
+}
+
+#[test]
+fn a_header_of_many_elements_is_checked_in_linear_time() {
+    let n = 25_000;
+    let mut ply = String::from("ply\nformat ascii 1.0\n");
+    for i in 0..n {
+        let _ = write!(ply, "element e{i} 0\nproperty char x\n");
+    }
+    ply.push_str("element vertex 0\nproperty float x\nelement e7 0\nproperty char x\nend_header\n");
+    assert!(ply.len() < 1 << 20, "within the 1 MiB header limit");
+    let src = MemorySource::new().with_file("t.ply", ply.into_bytes().leak());
+    let err = load_mesh_from(&src, Path::new("t.ply"))
+        .map(|_| ())
+        .map_err(|e| e.to_string());
+    // Two format lines, two lines per element, the vertex element's two.
+    let line = 2 + 2 * n + 2 + 1;
+    assert_eq!(err, Err(format!("t.ply:{line}: element 'e7' is declared twice")));
+}
