@@ -12,7 +12,7 @@
 use crate::{AssetSource, LoadReport, load_texture, normalize_path};
 use lucent_geom::{Vec2, Vec3};
 use lucent_shading::{Material, Texture, WrapMode};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -47,8 +47,14 @@ pub(crate) fn load_materials(
         );
     }
     let mut textures = HashMap::new();
+    // Each library once, however often the OBJ names it: otherwise the
+    // work is the OBJ's size times the MTL's.
+    let mut read: HashSet<PathBuf> = HashSet::new();
     for (line, lib) in mtllibs {
         let mtl_path = normalize_path(&dir.join(lib));
+        if !read.insert(mtl_path.clone()) {
+            continue;
+        }
         let parsed = source.read(&mtl_path).map_err(|e| e.to_string()).and_then(|bytes| {
             let text = normalize_mtl(&bytes).map_err(|(l, m)| format!("{}:{l}: {m}", mtl_path.display()))?;
             tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()))
