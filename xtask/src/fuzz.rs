@@ -201,7 +201,11 @@ fn fuzz_target(dir: &Path, target: &str, corpus: &Path, opts: &Opts) -> Result<T
     std::fs::create_dir_all(&artifacts).map_err(|e| format!("cannot create {}: {e}", artifacts.display()))?;
     let mut tally = Tally::default();
     let start = Instant::now();
-    let mut session = 0;
+    // Number logs after those of earlier invocations, so none is overwritten.
+    let mut session = (1..)
+        .find(|n| !dir.join("logs").join(format!("{target}-{n}.log")).exists())
+        .unwrap_or(1)
+        - 1;
     loop {
         let elapsed = start.elapsed().as_secs();
         if tally.executions >= opts.runs || elapsed >= opts.seconds || tally.crashes.len() >= MAX_CRASHES {
