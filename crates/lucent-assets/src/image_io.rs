@@ -69,7 +69,19 @@ pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetErr
             ),
         ));
     }
-    let img = reader(bytes, format).decode().map_err(cannot)?;
+    // zune-jpeg 0.5.15 (through image) panics on some malformed JPEGs (an
+    // IDCT slice out of range, found by fuzzing); a decoder's panic is this
+    // file's error, not the program's end.
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
+    let img = match decoded {
+        Ok(result) => result.map_err(cannot)?,
+        Err(_) => {
+            return Err(AssetError::format(
+                path,
+                format!("cannot decode image: the {format:?} decoder failed on malformed data"),
+            ));
+        }
+    };
     let (width, height) = (img.width(), img.height());
     let texels: Vec<Vec3> = match img {
         DynamicImage::ImageRgb8(_)

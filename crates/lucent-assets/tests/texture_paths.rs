@@ -124,3 +124,15 @@ fn mtl_textures_that_are_not_images_warn_by_case_and_show_a_checkerboard() {
         [("gone", 8), ("folder", 8), ("text", 8), ("cut", 8), ("good", 4)].map(|(n, w)| (Some(n.to_owned()), w));
     assert_eq!(sizes, expected);
 }
+
+#[test]
+fn a_jpeg_that_panics_the_decoder_is_an_error() {
+    // Found by the texture fuzz target: 373 bytes on which zune-jpeg
+    // 0.5.15 indexes out of range in its IDCT.
+    let bytes = include_bytes!("data/fuzz/zune-jpeg-idct-panic.jpg");
+    let err = lucent_assets::texture_from_bytes(bytes, Path::new("t.jpg")).map(|_| ());
+    assert_eq!(
+        err.map_err(|e| e.to_string()),
+        Err("t.jpg: cannot decode image: the Jpeg decoder failed on malformed data".to_owned())
+    );
+}
