@@ -7,11 +7,14 @@
 //! - `tidy`: repository rules (also run as a test, see `tidy.rs`);
 //! - `render SCENE [--out FILE.png] [ARGS...]`: render with a release build;
 //! - `view-bench`, `soak`: drive the viewer under Xvfb (see `viewer.rs`);
-//! - `extremes [FILTER]`: the extremes suite at full size (see `extremes.rs`).
+//! - `extremes [FILTER]`: the extremes suite at full size (see `extremes.rs`);
+//! - `fuzz [TARGET...] [--runs N] [--time S]`: build and run the fuzz
+//!   targets in `fuzz/` (see `fuzz.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod extremes;
+mod fuzz;
 mod tidy;
 mod viewer;
 
@@ -36,7 +39,13 @@ commands:
                            finite camera, flat memory; one JSON line
   extremes [FILTER]        the extremes suite at full size (release build): a 16384-wide
                            image, 1e6 samples per pixel, 157.5M watertightness rays;
-                           prints every figure";
+                           prints every figure
+  fuzz [TARGET...] [--runs N] [--time S] [--max-len B] [--rss-mb M] [--no-build]
+                           build the fuzz targets (obj ply mtl scene texture; all
+                           by default) with cargo-fuzz and run each in turn until
+                           N executions (default 10000000) or S seconds (3600);
+                           crashes are kept in fuzz/artifacts and fuzzing goes on;
+                           figures in fuzz/logs/summary.tsv. Not part of CI";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -48,6 +57,7 @@ fn main() -> ExitCode {
         Some("view-bench") => viewer::bench(&args[1..]),
         Some("soak") => viewer::soak(&args[1..]),
         Some("extremes") => extremes::run_full(&args[1..]),
+        Some("fuzz") => fuzz::fuzz(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

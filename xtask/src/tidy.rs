@@ -24,7 +24,7 @@ const OWNERS: &[(&str, &[&str])] = &[
 pub fn check(root: &Path) -> Result<(), Vec<String>> {
     let mut problems = Vec::new();
     let mut files = Vec::new();
-    for dir in ["crates", "tests", "xtask", "docs"] {
+    for dir in ["crates", "tests", "xtask", "docs", "fuzz"] {
         walk(&root.join(dir), &mut files);
     }
     for f in ["README.md", "ARCHITECTURE.md", "Cargo.toml"] {
@@ -92,7 +92,9 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         if p.is_dir() {
-            if name != "target" && name != "snapshots" {
+            // Fuzzing's generated inputs and outputs are not sources.
+            let generated = ["target", "snapshots", "corpus", "artifacts", "logs", "coverage"];
+            if !generated.contains(&name.as_str()) {
                 walk(&p, out);
             }
         } else if [".rs", ".toml", ".md"].iter().any(|ext| name.ends_with(ext)) {

@@ -1,12 +1,27 @@
 //! Texture decoding (PNG, JPEG) into linear RGB, and PNG encoding.
 
 use crate::{AssetError, AssetSource};
-use image::{DynamicImage, ImageFormat};
+use image::{DynamicImage, ImageFormat, ImageReader, Limits};
 use lucent_shading::color::srgb_to_linear;
 use lucent_shading::{Texture, Vec3};
 use std::io::Cursor;
 use std::path::Path;
 use std::sync::OnceLock;
+
+/// The widest or tallest texture accepted, in texels.
+pub const MAX_TEXTURE_SIDE: u32 = 16_384;
+
+/// The most texels a texture may have (2^26, e.g. 8192 x 8192): decoded to
+/// linear RGB in `f32` that is 768 MiB.
+pub const MAX_TEXELS: u64 = 1 << 26;
+
+/// The most texels a texture may have per byte of its file. PNG's deflate
+/// expands at most about 1032 times and a 1-bit image packs 8 texels a byte
+/// (about 8 256 texels per byte); baseline and progressive JPEG need at
+/// least a bit per 8x8 block (512). A header that claims more than this
+/// cannot be a complete image, and is refused before anything is allocated
+/// for it, so a small file cannot make the decoder allocate a huge buffer.
+pub const MAX_TEXELS_PER_BYTE: u64 = 10_000;
 
 /// Loads a colour texture from `path`: sRGB-encoded texels are decoded to
 /// linear RGB (alpha is dropped).
@@ -16,6 +31,10 @@ pub fn load_texture(source: &dyn AssetSource, path: &Path) -> Result<Texture, As
 }
 
 /// Decodes an image already in memory; `path` is used in messages only.
+///
+/// The header's dimensions are checked before decoding: at most
+/// [`MAX_TEXTURE_SIDE`] on a side, [`MAX_TEXELS`] in all and
+/// [`MAX_TEXELS_PER_BYTE`] per byte of `bytes`.
 pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetError> {
     let format = image::guess_format(bytes)
         .map_err(|_| AssetError::format(path, "not a PNG or JPEG image (unrecognised header)"))?;
@@ -25,8 +44,44 @@ pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetErr
             format!("{format:?} images are not supported (use PNG or JPEG)"),
         ));
     }
-    let img = image::load_from_memory_with_format(bytes, format)
-        .map_err(|e| AssetError::format(path, format!("cannot decode image: {e}")))?;
+    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
+    // The header alone, with the decoder's default limits, so the checks
+    // below give the messages.
+    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(cannot)?;
+    let texels = u64::from(width) * u64::from(height);
+    if width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE || texels > MAX_TEXELS {
+        return Err(AssetError::format(
+            path,
+            format!(
+                "the image is {width}x{height}; textures are at most {MAX_TEXTURE_SIDE} texels on a side \
+                 and {MAX_TEXELS} in all"
+            ),
+        ));
+    }
+    if texels > MAX_TEXELS_PER_BYTE * bytes.len() as u64 {
+        return Err(AssetError::format(
+            path,
+            format!(
+                "the header claims {width}x{height} texels, more than a {}-byte file can hold",
+                bytes.len()
+            ),
+        ));
+    }
+    // zune-jpeg 0.5.15 (through image) panics on some malformed JPEGs (an
+    // IDCT slice out of range, found by fuzzing); a decoder's panic is this
+    // file's error, not the program's end.
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
+    let img = match decoded {
+        Ok(result) => result.map_err(cannot)?,
+        Err(_) => {
+            return Err(AssetError::format(
+                path,
+                format!("cannot decode image: the {format:?} decoder failed on malformed data"),
+            ));
+        }
+    };
     let (width, height) = (img.width(), img.height());
     let texels: Vec<Vec3> = match img {
         DynamicImage::ImageRgb8(_)
@@ -46,6 +101,36 @@ pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetErr
             .collect(),
     };
     Texture::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))
+}
+
+/// Why a texture could not be loaded, naming the case: the file does not
+/// exist, is a directory, or is not a usable image (with the decoder's
+/// reason). Used in the warnings and errors of MTL and scene files, which
+/// name their own file and place first.
+pub(crate) fn texture_problem(error: &AssetError) -> String {
+    match error {
+        AssetError::Io { path, error } => match error.kind() {
+            std::io::ErrorKind::NotFound => format!("{} does not exist", path.display()),
+            std::io::ErrorKind::IsADirectory => format!("{} is a directory, not an image", path.display()),
+            _ => format!("{} cannot be read ({error})", path.display()),
+        },
+        AssetError::Format { path, message, .. } => {
+            format!("{} is not a usable image ({message})", path.display())
+        }
+        AssetError::Scene(e) => e.to_string(),
+    }
+}
+
+/// A decoder for `bytes` whose limits match the checks above.
+fn reader(bytes: &[u8], format: ImageFormat) -> ImageReader<Cursor<&[u8]>> {
+    let mut reader = ImageReader::with_format(Cursor::new(bytes), format);
+    let mut limits = Limits::default();
+    limits.max_image_width = Some(MAX_TEXTURE_SIDE);
+    limits.max_image_height = Some(MAX_TEXTURE_SIDE);
+    // The decoded image at 16 bits per channel, RGBA.
+    limits.max_alloc = Some(MAX_TEXELS * 8);
+    reader.limits(limits);
+    reader
 }
 
 fn srgb_lut() -> &'static [f32; 256] {
@@ -193,5 +278,106 @@ mod tests {
         let truncated: &'static [u8] = png[..png.len() / 2].to_vec().leak();
         assert!(err(truncated).is_err_and(|e| e.starts_with("x.png: cannot decode image")));
         assert!(encode_png(2, 2, &[0; 5]).is_err());
+    }
+
+    /// CRC-32 (ISO-HDLC, as PNG uses) of `bytes`.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut crc = !0u32;
+        for &b in bytes {
+            crc ^= u32::from(b);
+            for _ in 0..8 {
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    }
+
+    /// A small valid PNG whose header is rewritten to claim `width` x
+    /// `height` (the CRC fixed), so only the pixel data is short.
+    fn png_claiming(width: u32, height: u32) -> Vec<u8> {
+        let mut png = encode_png(2, 2, &[9; 12]).unwrap_or_default();
+        // Signature (8), IHDR length (4), "IHDR" (4), then width and height.
+        assert_eq!(&png[12..16], b"IHDR");
+        png[16..20].copy_from_slice(&width.to_be_bytes());
+        png[20..24].copy_from_slice(&height.to_be_bytes());
+        let crc = crc32(&png[12..29]);
+        png[29..33].copy_from_slice(&crc.to_be_bytes());
+        png
+    }
+
+    /// An 8x8 baseline JPEG whose frame header is rewritten to claim
+    /// `width` x `height`.
+    fn jpeg_claiming(width: u16, height: u16) -> Vec<u8> {
+        let grey = image::RgbImage::from_pixel(8, 8, image::Rgb([128, 128, 128]));
+        let mut jpeg = Vec::new();
+        let encoded = grey.write_to(&mut Cursor::new(&mut jpeg), ImageFormat::Jpeg);
+        assert!(encoded.is_ok(), "{encoded:?}");
+        let sof = jpeg.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap_or(0);
+        assert!(sof > 0, "no baseline frame header");
+        // Marker (2), length (2), precision (1), then height and width.
+        jpeg[sof + 5..sof + 7].copy_from_slice(&height.to_be_bytes());
+        jpeg[sof + 7..sof + 9].copy_from_slice(&width.to_be_bytes());
+        jpeg
+    }
+
+    fn decode_err(bytes: &[u8]) -> String {
+        match texture_from_bytes(bytes, Path::new("big.png")) {
+            Ok(t) => format!("decoded {}x{}", t.width(), t.height()),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn headers_claiming_huge_images_are_refused_before_decoding() {
+        // Within the side limit but far more than ~70 bytes can hold: the
+        // decoder would otherwise allocate 1 GiB for it.
+        let png = png_claiming(8192, 8192);
+        assert_eq!(
+            decode_err(&png),
+            format!(
+                "big.png: the header claims 8192x8192 texels, more than a {}-byte file can hold",
+                png.len()
+            )
+        );
+        assert_eq!(
+            decode_err(&png_claiming(100_000, 1)),
+            "big.png: the image is 100000x1; textures are at most 16384 texels on a side and 67108864 in all"
+        );
+        assert!(decode_err(&png_claiming(0x7FFF_FFFF, 0x7FFF_FFFF)).starts_with("big.png: "));
+        let jpeg = jpeg_claiming(65_535, 65_535);
+        assert_eq!(
+            decode_err(&jpeg),
+            "big.png: the image is 65535x65535; textures are at most 16384 texels on a side and 67108864 in all"
+        );
+        let jpeg = jpeg_claiming(16_000, 4_000);
+        assert_eq!(
+            decode_err(&jpeg),
+            format!(
+                "big.png: the header claims 16000x4000 texels, more than a {}-byte file can hold",
+                jpeg.len()
+            )
+        );
+        // The same rewriting to a size the data can hold still decodes or
+        // fails cleanly: the check is not what refuses it.
+        assert_eq!(decode_err(&png_claiming(2, 2)), "decoded 2x2");
+        assert!(decode_err(&png_claiming(4, 4)).starts_with("big.png: cannot decode image"));
+    }
+
+    #[test]
+    fn a_big_flat_png_within_the_ratio_still_loads() {
+        // 2048x2048 of one colour compresses to a few kilobytes, well under
+        // the per-byte bound, and must keep loading.
+        let rgb = vec![200u8; 2048 * 2048 * 3];
+        let png = encode_png(2048, 2048, &rgb).unwrap_or_default();
+        assert!(
+            (png.len() as u64) * MAX_TEXELS_PER_BYTE >= 2048 * 2048,
+            "{} bytes",
+            png.len()
+        );
+        assert_eq!(decode_err(&png), "decoded 2048x2048");
     }
 }

@@ -6,12 +6,13 @@
 //! mirror weight `kr = Ks`), Pr (roughness, clamped to 0..1) and map_Kd with `-s` (uv scale), `-o` (uv
 //! offset) and `-clamp on|off`; other options are read past with a
 //! warning. A missing MTL, material or texture is a warning and shows in
-//! magenta, never an error.
+//! magenta, never an error; a texture's warning says which case it is (the
+//! file does not exist, is a directory, or is not a usable image).
 
 use crate::{AssetSource, LoadReport, load_texture, normalize_path};
 use lucent_geom::{Vec2, Vec3};
 use lucent_shading::{Material, Texture, WrapMode};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -46,8 +47,14 @@ pub(crate) fn load_materials(
         );
     }
     let mut textures = HashMap::new();
+    // Each library once, however often the OBJ names it: otherwise the
+    // work is the OBJ's size times the MTL's.
+    let mut read: HashSet<PathBuf> = HashSet::new();
     for (line, lib) in mtllibs {
         let mtl_path = normalize_path(&dir.join(lib));
+        if !read.insert(mtl_path.clone()) {
+            continue;
+        }
         let parsed = source.read(&mtl_path).map_err(|e| e.to_string()).and_then(|bytes| {
             let text = normalize_mtl(&bytes).map_err(|(l, m)| format!("{}:{l}: {m}", mtl_path.display()))?;
             tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()))
@@ -171,8 +178,13 @@ fn convert_material(
                     Ok(t) => Arc::new(t),
                     Err(e) => {
                         report.warn(
-                            &tex_path,
-                            format!("{e}; material '{}' shows a checkerboard instead", m.name),
+                            mtl_path,
+                            format!(
+                                "material '{}': texture '{}': {}; it shows a checkerboard instead",
+                                m.name,
+                                map.file,
+                                crate::image_io::texture_problem(&e)
+                            ),
                         );
                         Arc::new(missing_texture())
                     }

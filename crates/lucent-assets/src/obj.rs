@@ -16,6 +16,8 @@ use crate::mtl::{MaterialSet, fallback_material, load_materials};
 use crate::{AssetError, AssetSource, LoadReport, Location, MeshPart};
 use lucent_geom::{TriMesh, Vec2, Vec3};
 use lucent_shading::color::srgb_to_linear;
+use std::collections::hash_map::Entry;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 /// No index (a corner without uv or normal, or an empty chain).
@@ -93,7 +95,10 @@ pub(crate) fn load_obj(
     let mut unifier = Unifier::new(parsed.positions.len());
     let mut parts = Vec::with_capacity(parsed.parts.len());
     let mut short_faces = 0;
+    // In order of first use; the set keeps the check linear when a file
+    // names many materials its MTL lacks.
     let mut missing_materials: Vec<&str> = Vec::new();
+    let mut missing_seen: HashSet<&str> = HashSet::new();
     for rec in &parsed.parts {
         let built = build_part(&parsed, rec, &mut unifier, &mut short_faces)
             .map_err(|(line, message)| AssetError::at(path, Location::Line(line), message))?;
@@ -103,7 +108,7 @@ pub(crate) fn load_obj(
         let material = rec.material.as_ref().map(|name| match materials.get(name) {
             Some(m) => m.clone(),
             None => {
-                if !missing_materials.contains(&name.as_str()) {
+                if missing_seen.insert(name.as_str()) {
                     missing_materials.push(name);
                 }
                 fallback_material()
@@ -122,7 +127,7 @@ pub(crate) fn load_obj(
             path,
             format!(
                 "material(s) {} not found in its MTL files; shown in magenta",
-                missing_materials.join(", ")
+                name_list(&missing_materials)
             ),
         );
     }
@@ -133,6 +138,18 @@ pub(crate) fn load_obj(
         );
     }
     Ok(parts)
+}
+
+/// At most this many names are listed in one warning.
+const LISTED_NAMES: usize = 10;
+
+/// `a, b, c`, or the first [`LISTED_NAMES`] and how many more.
+fn name_list(names: &[&str]) -> String {
+    let shown = names[..names.len().min(LISTED_NAMES)].join(", ");
+    match names.len().checked_sub(LISTED_NAMES) {
+        Some(more) if more > 0 => format!("{shown} and {more} more"),
+        _ => shown,
+    }
 }
 
 /// The line without its comment: a `#` at the start of a word begins one
@@ -309,14 +326,23 @@ fn parse_corner(word: &str, p: &Parsed, line: usize) -> Result<[u32; 3], LineErr
 }
 
 /// Maps (position, uv, normal, smoothing key) to output vertices of one
-/// part without hashing: `first[v]` heads a chain, through `next`, of the
-/// output vertices made from position `v`.
+/// part without hashing in the common case: `first[v]` heads a chain,
+/// through `next`, of the output vertices made from position `v`. Real
+/// meshes give a position a handful of keys, but a hostile file can give
+/// one position a key per corner (`s 1`, `f 1 2 3`, `s 2`, `f 1 2 3`...),
+/// which made the chain walk quadratic (40 000 smoothing groups on one
+/// triangle: 46 s). So a chain holds at most [`CHAIN_LIMIT`] vertices and
+/// a position's further keys go to a hash map.
 struct Unifier {
     first: Vec<u32>,
     next: Vec<u32>,
     keys: Vec<(u32, u32, u64)>,
     src: Vec<u32>,
+    overflow: HashMap<(u32, (u32, u32, u64)), u32>,
 }
+
+/// The longest chain walked before the hash map takes over.
+const CHAIN_LIMIT: usize = 16;
 
 impl Unifier {
     fn new(n_positions: usize) -> Self {
@@ -325,6 +351,7 @@ impl Unifier {
             next: Vec::new(),
             keys: Vec::new(),
             src: Vec::new(),
+            overflow: HashMap::new(),
         }
     }
 
@@ -332,17 +359,30 @@ impl Unifier {
     #[inline]
     fn vertex(&mut self, v: u32, key: (u32, u32, u64)) -> (u32, bool) {
         let mut i = self.first[v as usize];
+        let mut walked = 0;
         while i != NONE {
             if self.keys[i as usize] == key {
                 return (i, false);
             }
             i = self.next[i as usize];
+            walked += 1;
         }
         let new = self.keys.len() as u32;
+        if walked >= CHAIN_LIMIT {
+            match self.overflow.entry((v, key)) {
+                Entry::Occupied(e) => return (*e.get(), false),
+                Entry::Vacant(e) => {
+                    e.insert(new);
+                }
+            }
+            // Not linked into the chain, which stays at the limit.
+            self.next.push(NONE);
+        } else {
+            self.next.push(self.first[v as usize]);
+            self.first[v as usize] = new;
+        }
         self.keys.push(key);
-        self.next.push(self.first[v as usize]);
         self.src.push(v);
-        self.first[v as usize] = new;
         (new, true)
     }
 
@@ -354,6 +394,7 @@ impl Unifier {
         self.next.clear();
         self.keys.clear();
         self.src.clear();
+        self.overflow.clear();
     }
 }
 

@@ -18,6 +18,7 @@ use crate::{AssetError, AssetSource, LoadReport, Location, MeshPart};
 use lucent_geom::TriMesh;
 use ply_rs::parser::Parser;
 use ply_rs::ply::{DefaultElement, ElementDef, Encoding, Header, PropertyType};
+use std::collections::HashSet;
 use std::io::Cursor;
 use std::path::Path;
 
@@ -359,7 +360,8 @@ fn plan_face(def: &ElementDef, path: &Path, report: &mut LoadReport) -> Result<V
 /// element needs a property. Returns `(line, message)` for the first
 /// problem.
 fn check_header_text(bytes: &[u8]) -> Result<(), (usize, String)> {
-    let mut names: Vec<String> = Vec::new();
+    // A set: a long header of many elements must not take quadratic time.
+    let mut names: HashSet<String> = HashSet::new();
     let mut open_element: Option<(usize, String)> = None;
     for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
         for run in line.split(|b| !b.is_ascii_digit()).filter(|r| !r.is_empty()) {
@@ -389,10 +391,9 @@ fn check_header_text(bytes: &[u8]) -> Result<(), (usize, String)> {
                     return Err((at, format!("element '{name}' has no properties")));
                 }
                 if let Some(name) = words.next().filter(|_| text.starts_with("element")) {
-                    if names.iter().any(|n| n == name) {
+                    if !names.insert(name.to_owned()) {
                         return Err((i + 1, format!("element '{name}' is declared twice")));
                     }
-                    names.push(name.to_owned());
                     open_element = Some((i + 1, name.to_owned()));
                 }
             }

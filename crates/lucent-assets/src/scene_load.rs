@@ -112,8 +112,14 @@ impl Loader<'_> {
                     Some(t) => t.clone(),
                     None => {
                         let mut t = load_texture(self.source, &path).map_err(|e| {
-                            self.file
-                                .error_at(tex.span(), format!("cannot load texture '{}': {e}", desc.file()))
+                            self.file.error_at(
+                                tex.span(),
+                                format!(
+                                    "cannot load texture '{}': {}",
+                                    desc.file(),
+                                    crate::image_io::texture_problem(&e)
+                                ),
+                            )
                         })?;
                         t.wrap = desc.wrap();
                         let t = Arc::new(t);

@@ -38,7 +38,7 @@ pub struct FileSystem;
 impl AssetSource for FileSystem {
     fn read(&self, path: &Path) -> Result<Cow<'_, [u8]>, AssetError> {
         if path.is_dir() {
-            return Err(AssetError::format(path, "is a directory, not a file"));
+            return Err(is_a_directory(path));
         }
         std::fs::read(path).map(Cow::Owned).map_err(|error| AssetError::Io {
             path: path.to_owned(),
@@ -54,12 +54,21 @@ impl AssetSource for FileSystem {
         let file = std::fs::File::open(path).map_err(io)?;
         let meta = file.metadata().map_err(io)?;
         if meta.is_dir() {
-            return Err(AssetError::format(path, "is a directory, not a file"));
+            return Err(is_a_directory(path));
         }
         Ok(AssetReader {
             reader: Box::new(file),
             len: meta.len(),
         })
+    }
+}
+
+/// The error for a path that names a directory: an IO error of kind
+/// [`std::io::ErrorKind::IsADirectory`], so callers can tell the case apart.
+fn is_a_directory(path: &Path) -> AssetError {
+    AssetError::Io {
+        path: path.to_owned(),
+        error: std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory, not a file"),
     }
 }
 

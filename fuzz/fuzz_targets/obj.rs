@@ -1,0 +1,16 @@
+//! Fuzzes the OBJ loader: the input is `x.obj`, whose `mtllib m.mtl` finds
+//! a small fixed MTL with a texture.
+#![no_main]
+
+use lucent_fuzz::FuzzSource;
+use std::path::Path;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let path = Path::new("x.obj");
+    let source = FuzzSource {
+        input_path: path,
+        input: data,
+    };
+    let result = lucent_assets::load_mesh_from(&source, path);
+    lucent_fuzz::check_names_file(&result, "x.obj");
+});
