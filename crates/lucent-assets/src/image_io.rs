@@ -154,14 +154,7 @@ pub fn encode_png(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>, AssetE
 
 /// Writes 8-bit RGB pixels as a PNG file.
 pub fn save_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), AssetError> {
-    let bytes = encode_png(width, height, rgb).map_err(|e| match e {
-        AssetError::Format { message, .. } => AssetError::format(path, message),
-        other => other,
-    })?;
-    std::fs::write(path, bytes).map_err(|error| AssetError::Io {
-        path: path.to_owned(),
-        error,
-    })
+    write_encoded(path, encode_png(width, height, rgb))
 }
 
 /// Encodes linear RGB floats (interleaved, row 0 at the top) as an
@@ -182,7 +175,13 @@ pub fn encode_exr(width: u32, height: u32, rgb: &[f32]) -> Result<Vec<u8>, Asset
 /// Writes linear RGB floats as an OpenEXR file (32-bit float channels,
 /// linear radiance, no transfer function).
 pub fn save_exr(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<(), AssetError> {
-    let bytes = encode_exr(width, height, rgb).map_err(|e| match e {
+    write_encoded(path, encode_exr(width, height, rgb))
+}
+
+/// Writes what an encoder produced to `path`; an encoding error is
+/// reported against `path` instead of the encoder's placeholder name.
+fn write_encoded(path: &Path, encoded: Result<Vec<u8>, AssetError>) -> Result<(), AssetError> {
+    let bytes = encoded.map_err(|e| match e {
         AssetError::Format { message, .. } => AssetError::format(path, message),
         other => other,
     })?;
