@@ -104,6 +104,21 @@ pub(super) fn ggx_d(h: Vec3, alpha: f32) -> f32 {
     1.0 / (PI * a2 * t * t)
 }
 
+/// For a reflection pair on one side, both directions turned to the upper
+/// hemisphere (the lobes are two-sided) and their half vector; `None` when
+/// `wo` and `wi` lie on opposite sides or the half vector is not above the
+/// surface.
+#[inline]
+fn reflection_half_vector(wo: Vec3, wi: Vec3) -> Option<(Vec3, Vec3, Vec3)> {
+    if !same_side(wo, wi) {
+        return None;
+    }
+    let below = wo.z < 0.0;
+    let (wo, wi) = (flip_if(below, wo), flip_if(below, wi));
+    let h = (wo + wi).normalize_or_zero();
+    (h.z > 0.0).then_some((wo, wi, h))
+}
+
 /// Smith's auxiliary function for GGX, `(sqrt(1 + alpha^2 tan^2) - 1) / 2`;
 /// infinite (nothing visible) when `w` lies in the surface.
 #[inline]
@@ -117,15 +132,9 @@ fn ggx_lambda(w: Vec3, alpha: f32) -> f32 {
 /// 2014): `f |cos theta_i| = D G2 / (4 |cos theta_o|)`. Two-sided.
 #[inline]
 pub(super) fn ggx_eval(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
-    if !same_side(wo, wi) {
+    let Some((wo, wi, h)) = reflection_half_vector(wo, wi) else {
         return 0.0;
-    }
-    let below = wo.z < 0.0;
-    let (wo, wi) = (flip_if(below, wo), flip_if(below, wi));
-    let h = (wo + wi).normalize_or_zero();
-    if h.z <= 0.0 {
-        return 0.0;
-    }
+    };
     let g2 = 1.0 / (1.0 + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha));
     ggx_d(h, alpha) * g2 / (4.0 * wo.z)
 }
@@ -135,15 +144,9 @@ pub(super) fn ggx_eval(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
 /// which leaves `G1(wo) D(h) / (4 wo.z)`.
 #[inline]
 pub(super) fn ggx_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
-    if !same_side(wo, wi) {
+    let Some((wo, _, h)) = reflection_half_vector(wo, wi) else {
         return 0.0;
-    }
-    let below = wo.z < 0.0;
-    let (wo, wi) = (flip_if(below, wo), flip_if(below, wi));
-    let h = (wo + wi).normalize_or_zero();
-    if h.z <= 0.0 {
-        return 0.0;
-    }
+    };
     let g1 = 1.0 / (1.0 + ggx_lambda(wo, alpha));
     g1 * ggx_d(h, alpha) / (4.0 * wo.z)
 }
