@@ -70,14 +70,7 @@ fn unwelded(mesh: &TriMesh) -> TriMesh {
 fn cow() -> TriMesh {
     let path = lucent_tests::repo_root().join("res/meshes/spot/cow.obj");
     let (parts, _) = lucent_assets::load_mesh(&path).unwrap_or_else(|e| panic!("{e}"));
-    let mut positions = Vec::new();
-    let mut indices = Vec::new();
-    for part in parts {
-        let base = positions.len() as u32;
-        positions.extend_from_slice(part.mesh.positions());
-        indices.extend(part.mesh.indices().iter().map(|t| t.map(|i| i + base)));
-    }
-    TriMesh::new(positions, indices).unwrap_or_else(|e| panic!("{e}"))
+    lucent_assets::merged_geometry(&parts).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// A position's bits, so that corners split for texture seams (same

@@ -47,7 +47,7 @@ pub use image_io::{
     MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png, load_texture, save_exr,
     save_png, texture_from_bytes,
 };
-pub use mesh::{MeshPart, load_mesh, load_mesh_from};
+pub use mesh::{MeshPart, load_mesh, load_mesh_from, merged_geometry};
 pub use ply_write::{PlyFormat, encode_ply, save_ply};
 pub use scene_load::{load_scene, load_scene_from};
 pub use source::{AssetReader, AssetSource, FileSystem, MemorySource, normalize_path};

@@ -1,7 +1,7 @@
 //! Loading one mesh file (OBJ or PLY) into triangle meshes.
 
 use crate::{AssetError, AssetSource, FileSystem, LoadReport, obj, ply};
-use lucent_geom::TriMesh;
+use lucent_geom::{MeshError, TriMesh};
 use lucent_shading::Material;
 use std::path::Path;
 
@@ -20,6 +20,41 @@ pub struct MeshPart {
     /// Whether the loader computed the normals because the file gave none
     /// (OBJ files, whose smoothing groups only the loader sees).
     pub normals_computed: bool,
+}
+
+/// The positions and triangles of `parts` as one mesh, in part order, so
+/// triangle `k` is the file's `k`-th triangle (what ray-for-ray comparisons
+/// with other tools need). Other attributes are left out, since parts may
+/// differ in which ones they carry.
+///
+/// ```
+/// use lucent_assets::{MeshPart, merged_geometry};
+/// use lucent_geom::{TriMesh, Vec3};
+/// let tri = TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]).unwrap_or_default();
+/// let part = |name: &str| MeshPart {
+///     name: name.into(),
+///     mesh: tri.clone(),
+///     material: None,
+///     material_name: None,
+///     normals_computed: false,
+/// };
+/// let merged = merged_geometry(&[part("a"), part("b")]).unwrap_or_default();
+/// assert_eq!(merged.indices(), &[[0, 1, 2], [3, 4, 5]]);
+/// ```
+pub fn merged_geometry(parts: &[MeshPart]) -> Result<TriMesh, MeshError> {
+    let n_vertices: usize = parts.iter().map(|p| p.mesh.positions().len()).sum();
+    if u32::try_from(n_vertices).is_err() {
+        return Err(MeshError::TooManyVertices(n_vertices));
+    }
+    let mut positions = Vec::with_capacity(n_vertices);
+    let mut indices = Vec::with_capacity(parts.iter().map(|p| p.mesh.n_triangles()).sum());
+    for part in parts {
+        // Fits: the total vertex count was checked above.
+        let base = positions.len() as u32;
+        positions.extend_from_slice(part.mesh.positions());
+        indices.extend(part.mesh.indices().iter().map(|t| t.map(|i| i + base)));
+    }
+    TriMesh::new(positions, indices)
 }
 
 /// Loads an OBJ (with its MTL materials and textures) or PLY file from disk.

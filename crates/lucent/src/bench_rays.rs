@@ -211,14 +211,7 @@ fn load_peer_mesh(path: &Path) -> Result<TriMesh> {
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
-    let mut positions = Vec::new();
-    let mut indices = Vec::new();
-    for part in parts {
-        let base = positions.len() as u32;
-        positions.extend_from_slice(part.mesh.positions());
-        indices.extend(part.mesh.indices().iter().map(|t| t.map(|i| i + base)));
-    }
-    TriMesh::new(positions, indices).with_context(|| path.display().to_string())
+    lucent_assets::merged_geometry(&parts).with_context(|| path.display().to_string())
 }
 
 fn read_rays(path: &Path) -> Result<Vec<Ray>> {
