@@ -87,6 +87,7 @@ impl Loader<'_> {
             spp: r.spp.unwrap_or(s.spp),
             max_depth: r.max_depth.unwrap_or(s.max_depth),
             min_weight: r.min_weight.unwrap_or(s.min_weight),
+            rr_depth: r.rr_depth.unwrap_or(s.rr_depth),
             shading: r.shading.unwrap_or(s.shading),
             seed: r.seed.unwrap_or(s.seed),
             integrator: r.integrator.unwrap_or(s.integrator),

@@ -5,7 +5,7 @@
 
 use crate::flat::{FlatBvh, MAX_FLAT_TRIANGLES};
 use crate::lights::LightSet;
-use lucent_accel::{BuildParams, Instance, MeshBvh, SceneBvh};
+use lucent_accel::{BuildParams, BuildQuality, Instance, MeshBvh, SceneBvh};
 use lucent_geom::{Affine3A, Mat3A, TriMesh, Vec3};
 use lucent_scene::camera::{Camera, OrbitRig};
 use lucent_scene::components::{Light, Material, MaterialRef, Mesh, MeshRef, Name};
@@ -73,6 +73,8 @@ pub struct RenderScene {
     pub features: SceneFeatures,
     /// Emissive triangles and lights, as the path tracer samples them.
     pub light_set: LightSet,
+    /// BVH build settings, kept for the lazily built flat tree.
+    build: BuildParams,
     /// Every instance's triangles in one render-space BVH, built the first
     /// time [`RenderScene::flat_bvh`] asks for it (only the path tracer
     /// does, so Whitted renders and the viewer's start do not pay for it).
@@ -121,10 +123,42 @@ impl fmt::Display for ExtractError {
 
 impl std::error::Error for ExtractError {}
 
+/// How [`extract_with`] builds the render data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExtractOptions {
+    /// Effort of the BVH builds: [`BuildQuality::Fast`] builds sooner and
+    /// traces slower, [`BuildQuality::High`] the other way round.
+    pub bvh_quality: BuildQuality,
+}
+
+impl Default for ExtractOptions {
+    fn default() -> Self {
+        Self {
+            bvh_quality: BuildQuality::Default,
+        }
+    }
+}
+
 /// Flattens `scene` into render data and builds its BVHs (meshes in
-/// parallel). Instances are ordered by entity so the result does not depend
-/// on the order hecs stores them in.
+/// parallel) with the default [`ExtractOptions`]. Instances are ordered by
+/// entity so the result does not depend on the order hecs stores them in.
 pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
+    extract_with(scene, &ExtractOptions::default())
+}
+
+/// [`extract`] with explicit options.
+///
+/// ```
+/// use lucent_render::{BuildQuality, ExtractOptions, extract_with};
+/// use lucent_scene::{Scene, components::{Camera, OrbitRig}};
+/// let mut scene = Scene::default();
+/// scene.add_camera("cam", Camera::default(), OrbitRig::default());
+/// let options = ExtractOptions { bvh_quality: BuildQuality::Fast };
+/// let rs = extract_with(&scene, &options)?;
+/// assert_eq!(rs.n_instanced_triangles(), 0);
+/// # Ok::<(), lucent_render::ExtractError>(())
+/// ```
+pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderScene, ExtractError> {
     let (camera, rig) = scene.camera().ok_or(ExtractError::NoCamera)?;
     let origin = render_origin(&rig);
     let render_from_world = Affine3A::from_translation(-origin);
@@ -169,7 +203,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         instance_names.push(name);
     }
 
-    let params = BuildParams::default();
+    let params = BuildParams::for_quality(options.bvh_quality);
     let blas: Vec<Arc<MeshBvh>> = meshes
         .par_iter()
         .map(|m| Arc::new(MeshBvh::build(m, &params)))
@@ -208,6 +242,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
         bvh,
         features,
         light_set,
+        build: params,
         flat_bvh: OnceLock::new(),
     })
 }
@@ -261,14 +296,7 @@ impl RenderScene {
     /// [`FlatBvh::build`]).
     pub fn flat_bvh(&self) -> Option<&FlatBvh> {
         self.flat_bvh
-            .get_or_init(|| {
-                FlatBvh::build(
-                    &self.meshes,
-                    &self.instances,
-                    &BuildParams::default(),
-                    MAX_FLAT_TRIANGLES,
-                )
-            })
+            .get_or_init(|| FlatBvh::build(&self.meshes, &self.instances, &self.build, MAX_FLAT_TRIANGLES))
             .as_ref()
     }
 

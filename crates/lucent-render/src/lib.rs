@@ -36,13 +36,17 @@ mod extract;
 mod film;
 pub mod flat;
 pub mod lights;
+pub mod metrics;
 pub mod path;
 mod render;
 pub mod whitted;
 
 pub use camera::PinholeCamera;
-pub use extract::{ExtractError, RenderInstance, RenderScene, SceneFeatures, extract, render_origin};
+pub use extract::{
+    ExtractError, ExtractOptions, RenderInstance, RenderScene, SceneFeatures, extract, extract_with, render_origin,
+};
 pub use film::{Film, ImageStats};
+pub use lucent_accel::BuildQuality;
 pub use lucent_scene::{Integrator, RenderSettings, Shading};
 pub use render::{
     RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, render_samples_cancellable,

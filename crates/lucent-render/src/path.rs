@@ -12,10 +12,11 @@
 //!   sampling by the power heuristic (weight 1 for point and directional
 //!   lights), unless the BSDF is purely specular;
 //! - samples the BSDF for the next direction, and once the path has
-//!   bounced [`RR_DEPTH`] times plays Russian roulette with survival
-//!   probability `min(max(throughput) eta^2, 0.95)` (`eta^2` the product of
-//!   the squared relative indices of refraction crossed, which undoes the
-//!   radiance scaling of refraction), as Mitsuba does with `rr_depth = 5`.
+//!   bounced `RenderSettings::rr_depth` times (5 by default) plays Russian
+//!   roulette with survival probability `min(max(throughput) eta^2, 0.95)`
+//!   (`eta^2` the product of the squared relative indices of refraction
+//!   crossed, which undoes the radiance scaling of refraction), as Mitsuba
+//!   does with its `rr_depth`.
 //!
 //! Rays that leave the scene collect the constant background (it is not
 //! sampled as a light). `max_depth` is Mitsuba's: the longest path counted
@@ -37,9 +38,6 @@ use lucent_accel::SceneHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
 use lucent_shading::{Bsdf, Frame};
 
-/// Russian roulette starts once a path has this many bounces, as with
-/// Mitsuba's default `rr_depth = 5`.
-pub const RR_DEPTH: u32 = 5;
 /// Highest survival probability of Russian roulette.
 const RR_MAX_SURVIVAL: f32 = 0.95;
 /// Shadow rays toward an area light stop this fraction short of the sampled
@@ -52,6 +50,8 @@ pub struct PathTracer<'a> {
     /// The scene's one-level tree, when it has one.
     flat: Option<&'a FlatBvh>,
     max_depth: u32,
+    /// Bounces before Russian roulette starts.
+    rr_depth: u32,
     /// Per material, its BSDF when nothing varies over the surface (no
     /// texture): built once per render, not at every hit.
     plain_bsdfs: Vec<Option<Bsdf>>,
@@ -85,6 +85,7 @@ impl<'a> PathTracer<'a> {
             scene,
             flat: scene.flat_bvh(),
             max_depth: settings.max_depth,
+            rr_depth: settings.rr_depth.max(1),
             plain_bsdfs,
         }
     }
@@ -206,7 +207,7 @@ impl<'a> PathTracer<'a> {
 
             // Russian roulette, once `depth` segments follow the camera ray
             // (Mitsuba: from the sixth surface on with `rr_depth = 5`).
-            if depth >= RR_DEPTH {
+            if depth >= self.rr_depth {
                 let survive = (throughput.max_element() * eta_scale).min(RR_MAX_SURVIVAL);
                 if rng.next_f32() >= survive {
                     break;

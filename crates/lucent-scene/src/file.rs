@@ -214,6 +214,9 @@ pub struct RenderDesc {
     /// Minimum ray weight (0 to 1).
     #[serde(default, deserialize_with = "unit_interval")]
     pub min_weight: Option<f32>,
+    /// Bounces before Russian roulette may end a path (1 to 64).
+    #[serde(default, deserialize_with = "rr_depth")]
+    pub rr_depth: Option<u32>,
     /// `"gouraud"` or `"phong"`.
     pub shading: Option<Shading>,
     /// Sample seed.
@@ -521,6 +524,10 @@ fn spp<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
 
 fn depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
     checked(d, |v: u32| v <= 64, "max_depth runs from 0 to 64").map(Some)
+}
+
+fn rr_depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+    checked(d, |v: u32| (1..=64).contains(&v), "rr_depth runs from 1 to 64").map(Some)
 }
 
 fn subdivisions<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {

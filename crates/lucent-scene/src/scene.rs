@@ -106,6 +106,10 @@ pub struct RenderSettings {
     pub max_depth: u32,
     /// Rays whose accumulated weight falls below this are not traced (S11).
     pub min_weight: f32,
+    /// Path tracer: Russian roulette may end a path once it has bounced
+    /// this many times (Mitsuba's `rr_depth`; 5 by default). Lower is
+    /// faster and noisier; it adds no bias.
+    pub rr_depth: u32,
     /// Gouraud or per-pixel Phong.
     pub shading: Shading,
     /// Seed of the per-pixel sample streams.
@@ -122,6 +126,7 @@ impl Default for RenderSettings {
             spp: 1,
             max_depth: 5,
             min_weight: 0.01,
+            rr_depth: 5,
             shading: Shading::Gouraud,
             seed: 0,
             integrator: Integrator::Whitted,

@@ -58,6 +58,9 @@ struct QualityArgs {
     /// Rays whose weight falls below this are not traced (0 to 1).
     #[arg(long, value_name = "W", value_parser = parse_unit)]
     min_weight: Option<f32>,
+    /// Path tracer: bounces before Russian roulette may end a path (1 to 64).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
+    rr_depth: Option<u32>,
     /// Evaluate lighting at the vertices (gouraud) or per pixel (phong).
     #[arg(long, value_enum)]
     shading: Option<ShadingArg>,
@@ -92,6 +95,9 @@ impl QualityArgs {
         }
         if let Some(w) = self.min_weight {
             s.min_weight = w;
+        }
+        if let Some(d) = self.rr_depth {
+            s.rr_depth = d;
         }
         if let Some(sh) = self.shading {
             s.shading = match sh {

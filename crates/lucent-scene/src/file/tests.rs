@@ -29,6 +29,7 @@ height = 180
 spp = 4
 max_depth = 6
 min_weight = 0.02
+rr_depth = 3
 shading = "phong"
 seed = 7
 
@@ -86,6 +87,16 @@ fn parses_every_table() {
         (Some(320), Some(180), Some(4))
     );
     assert_eq!(d.render.shading, Some(Shading::Phong));
+    assert_eq!(d.render.rr_depth, Some(3));
+    for bad in ["rr_depth = 0", "rr_depth = 65"] {
+        let e = parse(&format!("[render]\n{bad}\n"))
+            .map(|_| ())
+            .map_err(|e| e.to_string());
+        assert!(
+            matches!(&e, Err(m) if m.contains("rr_depth runs from 1 to 64")),
+            "{bad}: {e:?}"
+        );
+    }
     let cam = d.camera.as_ref().map(|c| (c.radius, c.fov_y_deg));
     assert_eq!(cam, Some((Some(4.0), 50.0)));
     assert_eq!(d.lights.len(), 2);
