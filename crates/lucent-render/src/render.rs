@@ -3,7 +3,7 @@
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
-use lucent_geom::{Pcg32, hash_u64};
+use lucent_geom::{DVec3, Pcg32, hash_u64};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -161,6 +161,58 @@ enum Tracer<'a> {
     Path(PathTracer<'a>),
 }
 
+/// One sample of one pixel: the camera, the integrator and the keying of
+/// the sample streams by (seed, pixel, sample), shared by the uniform
+/// passes here and the adaptive ones in `progressive`, so both take the
+/// very same samples.
+pub(crate) struct PixelSampler<'a> {
+    camera: PinholeCamera,
+    tracer: Tracer<'a>,
+    width: u64,
+    seed: u64,
+}
+
+impl<'a> PixelSampler<'a> {
+    /// A sampler for a `width` x `height` film.
+    pub(crate) fn new(scene: &'a RenderScene, settings: &RenderSettings, width: u32, height: u32) -> Self {
+        let camera = PinholeCamera::new(&scene.camera, &scene.render_rig(), width, height);
+        let tracer = match settings.integrator {
+            Integrator::Whitted => Tracer::Whitted(Whitted::new(scene, settings)),
+            Integrator::Path => Tracer::Path(PathTracer::new(scene, settings)),
+        };
+        Self {
+            camera,
+            tracer,
+            width: u64::from(width),
+            seed: settings.seed,
+        }
+    }
+
+    /// Radiance of sample `s` of pixel (`col`, `row`).
+    #[inline]
+    pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> DVec3 {
+        let pixel_idx = u64::from(row) * self.width + u64::from(col);
+        let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
+        match &self.tracer {
+            Tracer::Whitted(whitted) => {
+                let (jx, jy) = if s == 0 {
+                    (0.5, 0.5)
+                } else {
+                    (rng.next_f32(), rng.next_f32())
+                };
+                let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
+                whitted.trace_primary(ray, stats).as_dvec3()
+            }
+            Tracer::Path(path) => {
+                // Every sample uniform over the pixel: a box filter.
+                let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
+                path.trace_primary(ray, &mut rng, stats).as_dvec3()
+            }
+        }
+    }
+}
+
 /// Adds `samples` to each row of `film` not started before `cancel` was set.
 fn trace_rows(
     scene: &RenderScene,
@@ -170,13 +222,8 @@ fn trace_rows(
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> RayStats {
-    let camera = PinholeCamera::new(&scene.camera, &scene.render_rig(), film.width(), film.height());
-    let tracer = match settings.integrator {
-        Integrator::Whitted => Tracer::Whitted(Whitted::new(scene, settings)),
-        Integrator::Path => Tracer::Path(PathTracer::new(scene, settings)),
-    };
+    let sampler = PixelSampler::new(scene, settings, film.width(), film.height());
     let width = film.width() as usize;
-    let seed = settings.seed;
     let rows_done = AtomicUsize::new(0);
     film.sum
         .par_chunks_mut(width.max(1))
@@ -187,26 +234,8 @@ fn trace_rows(
                 return stats;
             }
             for (col, px) in pixels.iter_mut().enumerate() {
-                let pixel_idx = (row * width + col) as u64;
                 for s in samples.clone() {
-                    let mut rng = Pcg32::new(hash_u64(&[seed, pixel_idx, s as u64]), 0);
-                    match &tracer {
-                        Tracer::Whitted(whitted) => {
-                            let (jx, jy) = if s == 0 {
-                                (0.5, 0.5)
-                            } else {
-                                (rng.next_f32(), rng.next_f32())
-                            };
-                            let ray = camera.ray(col as f32 + jx, row as f32 + jy);
-                            *px += whitted.trace_primary(ray, &mut stats).as_dvec3();
-                        }
-                        Tracer::Path(path) => {
-                            // Every sample uniform over the pixel: a box filter.
-                            let (jx, jy) = (rng.next_f32(), rng.next_f32());
-                            let ray = camera.ray(col as f32 + jx, row as f32 + jy);
-                            *px += path.trace_primary(ray, &mut rng, &mut stats).as_dvec3();
-                        }
-                    }
+                    *px += sampler.sample(col as u32, row as u32, s, &mut stats);
                 }
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
