@@ -4,9 +4,15 @@ use crate::{QualityArgs, check_png_path, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use lucent_render::{Integrator, current_threads, extract, render, with_threads};
+use lucent_render::{
+    Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract, render, with_threads,
+};
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
+
+/// The cap on samples per pixel of `--time-budget` and `--target-error`
+/// without `--spp` (the largest `--spp` accepted).
+const MAX_SPP: u32 = 65536;
 
 /// Arguments of `lucent render`.
 #[derive(Args, Debug)]
@@ -25,11 +31,45 @@ pub struct RenderArgs {
     /// Samples per pixel (1 to 65536).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=65536))]
     spp: Option<u32>,
+    /// Refine until this much wall time is spent (after loading and the BVH),
+    /// e.g. 2s, 1.5s, 500ms; --spp caps the samples (default 65536).
+    #[arg(long, value_name = "TIME", value_parser = parse_budget, conflicts_with = "target_error")]
+    time_budget: Option<Duration>,
+    /// Sample adaptively until the estimated relative RMSE is below E (0 < E < 1);
+    /// --spp caps the samples per pixel (default 65536).
+    #[arg(long, value_name = "E", value_parser = parse_target_error)]
+    target_error: Option<f64>,
     /// Worker threads (default: one per CPU).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
     #[command(flatten)]
     quality: QualityArgs,
+}
+
+/// A duration such as `2s`, `1.5s` or `500ms`, from 1 ms to 24 hours.
+fn parse_budget(s: &str) -> Result<Duration, String> {
+    let t = s.trim();
+    let (number, unit_s) = if let Some(ms) = t.strip_suffix("ms") {
+        (ms, 1e-3)
+    } else if let Some(sec) = t.strip_suffix('s') {
+        (sec, 1.0)
+    } else {
+        return Err(format!("'{s}' is not a time: give a unit, e.g. 2s, 1.5s or 500ms"));
+    };
+    match number.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && (1e-3..=86_400.0).contains(&(v * unit_s)) => Ok(Duration::from_secs_f64(v * unit_s)),
+        Ok(_) => Err(format!("'{s}' is not a time from 1ms to 24 hours")),
+        Err(_) => Err(format!("'{s}' is not a time such as 2s, 1.5s or 500ms")),
+    }
+}
+
+fn parse_target_error(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v < 1.0 => Ok(v),
+        _ => Err(format!(
+            "'{s}' is not a relative error between 0 and 1 (exclusive), e.g. 0.05"
+        )),
+    }
 }
 
 fn parse_ev(s: &str) -> Result<f32, String> {
@@ -49,10 +89,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
             bail!("{}: the --exr file name must end in .exr", exr.display());
         }
     }
-    let (scene, _name, load_s) = prepare_scene(Some(&args.scene), &args.quality, args.spp)?;
+    let (mut scene, _name, load_s) = prepare_scene(Some(&args.scene), &args.quality, args.spp)?;
+    if args.time_budget.is_some() || args.target_error.is_some() {
+        // --spp is the cap here, not the scene's spp.
+        scene.settings.spp = args.spp.unwrap_or(MAX_SPP);
+    }
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
-    let (rs, build_s, out, n_threads) = with_threads(threads, || -> Result<_> {
+    let (rs, build_s, out, n_threads, refined) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
         let rs = extract(&scene).with_context(|| format!("{}", args.scene.display()))?;
         if settings.integrator == Integrator::Path {
@@ -65,9 +109,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
             ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
-        let out = render(&rs, &settings, &|rows| bar.set_position(rows as u64));
+        let (out, refined) = render_mode(&rs, &settings, &args, &bar);
         bar.finish_and_clear();
-        Ok((rs, build_s, out, current_threads()))
+        Ok((rs, build_s, out, current_threads(), refined))
     })??;
     let (w, h) = (out.film.width(), out.film.height());
     if let Some(png) = &args.output {
@@ -87,6 +131,19 @@ pub fn run(args: RenderArgs) -> Result<()> {
         Integrator::Whitted => format!("whitted {}", settings.shading.name()),
         Integrator::Path => format!("path max_depth {}", settings.max_depth),
     };
+    if let Some(refined) = refined {
+        println!(
+            "{}: {}x{}, {}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.2} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s",
+            outputs.join(" + "),
+            settings.width,
+            settings.height,
+            refined,
+            rs.n_instanced_triangles(),
+            rays as f64 / 1e6,
+            rays as f64 / 1e6 / secs.max(1e-9),
+        );
+        return Ok(());
+    }
     println!(
         "{}: {}x{}, {} spp, {}, {} threads, {} triangles: rendered in {:.2} s (load {:.2} s, BVH {:.3} s), {:.2} M rays, {:.2} Mrays/s, {:.3} s/spp",
         outputs.join(" + "),
@@ -104,4 +161,66 @@ pub fn run(args: RenderArgs) -> Result<()> {
         secs / f64::from(settings.spp.max(1)),
     );
     Ok(())
+}
+
+/// Renders as the arguments ask: a plain render, to a time budget, or to an
+/// error target. Returns the output and, for the last two, what they
+/// reached, for the summary line.
+fn render_mode(
+    rs: &RenderScene,
+    settings: &RenderSettings,
+    args: &RenderArgs,
+    bar: &ProgressBar,
+) -> (RenderOutput, Option<String>) {
+    if let Some(budget) = args.time_budget {
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} rendering for {msg}, {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        let budget_s = budget.as_secs_f64();
+        bar.set_message(format!("{budget_s} s: 0 spp"));
+        let out = lucent_render::render_for(rs, settings, budget, &|spp| {
+            bar.set_message(format!("{budget_s} s: {spp} spp"));
+            bar.tick();
+        });
+        let spp = out.film.n_samples();
+        let samples = u64::from(spp) * u64::from(out.film.width()) * u64::from(out.film.height());
+        let secs = out.elapsed.as_secs_f64();
+        let capped = if spp >= settings.spp { " (the --spp cap)" } else { "" };
+        let refined = format!(
+            "time budget {budget_s} s: {spp} spp reached{capped}, {samples} samples, {secs:.3} s elapsed ({:+.1}% of the budget)",
+            (secs / budget_s - 1.0) * 100.0
+        );
+        return (out, Some(refined));
+    }
+    if let Some(target) = args.target_error {
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} sampling adaptively to error {msg}, {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        bar.set_message(target.to_string());
+        bar.enable_steady_tick(Duration::from_millis(100));
+        let out = lucent_render::render_to_error(rs, settings, target, settings.spp);
+        let reached = if out.reached_target {
+            "reached".to_owned()
+        } else {
+            format!("NOT reached: every pixel at the --spp cap {}", settings.spp)
+        };
+        let refined = format!(
+            "target error {target}: estimated relative error {:.4} ({reached}), {:.1} spp mean ({} to {}), {} samples in {} rounds",
+            out.estimated_error,
+            out.mean_spp(),
+            out.min_spp(),
+            out.max_spp(),
+            out.total_samples,
+            out.rounds,
+        );
+        let plain = RenderOutput {
+            film: out.film,
+            stats: out.stats,
+            elapsed: out.elapsed,
+        };
+        return (plain, Some(refined));
+    }
+    (render(rs, settings, &|rows| bar.set_position(rows as u64)), None)
 }

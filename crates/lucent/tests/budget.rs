@@ -1,0 +1,134 @@
+//! `lucent render --time-budget` and `--target-error` end to end: what they
+//! print, that their output does not depend on the thread count, and their
+//! errors on bad values.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn lucent() -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
+    cmd.current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("../.."));
+    cmd
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("budget").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs `lucent render` on the Cornell box at 32x32 and returns stdout.
+fn render(extra: &[&str]) -> String {
+    let out = lucent()
+        .args(["render", "res/scenes/cornell-mitsuba.toml", "--size", "32x32"])
+        .args(extra)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The number after `key` in `line`.
+fn number_after(line: &str, key: &str) -> f64 {
+    let at = line.find(key).unwrap_or_else(|| panic!("no '{key}' in {line}")) + key.len();
+    let text: String = line[at..]
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '-' || *c == '+')
+        .collect();
+    text.parse()
+        .unwrap_or_else(|_| panic!("no number after '{key}' in {line}"))
+}
+
+/// A 1 s budget: the summary says how many spp it reached and how long it
+/// took; the render (after loading and the BVH, which the budget does not
+/// cover) must end within 10% of the budget, as the library's own test
+/// checks in detail.
+#[test]
+fn a_time_budget_reports_the_spp_reached_and_keeps_to_the_budget() {
+    let dir = scratch("time");
+    let png = dir.join("t.png");
+    let line = render(&["--time-budget", "1s", "-o", png.to_str().unwrap()]);
+    assert!(png.exists());
+    let spp = number_after(&line, "time budget 1 s: ");
+    let elapsed = number_after(&line, "samples, ");
+    assert!(spp >= 2.0, "{line}");
+    assert!((0.9..=1.1).contains(&elapsed), "{line}");
+    assert_eq!(number_after(&line, "reached, "), spp * 32.0 * 32.0, "{line}");
+}
+
+/// The spp cap: `--spp 2` ends a long budget at two samples per pixel.
+#[test]
+fn spp_caps_a_time_budget() {
+    let exr = scratch("cap").join("c.exr");
+    let line = render(&["--time-budget", "60s", "--spp", "2", "--exr", exr.to_str().unwrap()]);
+    assert!(line.contains("2 spp reached (the --spp cap)"), "{line}");
+}
+
+/// The error target: the estimate printed is at or below the target, and
+/// the image is the same bytes on one thread and on three.
+#[test]
+fn a_target_error_is_reached_the_same_on_one_and_three_threads() {
+    let dir = scratch("error");
+    let run = |threads: &str| {
+        let exr = dir.join(format!("e{threads}.exr"));
+        let line = render(&[
+            "--target-error",
+            "0.2",
+            "--threads",
+            threads,
+            "--exr",
+            exr.to_str().unwrap(),
+        ]);
+        (line, std::fs::read(&exr).unwrap())
+    };
+    let (line, one) = run("1");
+    let estimate = number_after(&line, "estimated relative error ");
+    assert!(estimate <= 0.2 && estimate > 0.05, "{line}");
+    assert!(line.contains("(reached)"), "{line}");
+    let (line3, three) = run("3");
+    assert!(one == three, "the EXRs differ between 1 and 3 threads");
+    assert_eq!(estimate, number_after(&line3, "estimated relative error "));
+}
+
+#[test]
+fn bad_budgets_and_targets_are_clear_errors() {
+    for (flag, value, says) in [
+        ("--time-budget", "2", "give a unit, e.g. 2s, 1.5s or 500ms"),
+        ("--time-budget", "1.5h", "give a unit"),
+        ("--time-budget", "0ms", "from 1ms to 24 hours"),
+        ("--time-budget", "fast s", "not a time such as 2s"),
+        ("--target-error", "0", "between 0 and 1"),
+        ("--target-error", "1.5", "between 0 and 1"),
+    ] {
+        let out = lucent()
+            .args([
+                "render",
+                "res/scenes/seed.toml",
+                "-o",
+                "x.png",
+                &format!("{flag}={value}"),
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}: {err}");
+        assert!(err.contains(says), "{flag} {value}: {err}");
+        assert!(!err.contains("panicked"));
+    }
+    let out = lucent()
+        .args([
+            "render",
+            "res/scenes/seed.toml",
+            "-o",
+            "x.png",
+            "--time-budget",
+            "1s",
+            "--target-error",
+            "0.1",
+        ])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot be used with"));
+}
