@@ -1,0 +1,90 @@
+//! The error-target render (`lucent_render::render_to_error`) against the
+//! truth: its estimated relative RMSE compared with the relative RMSE it
+//! really has against a high-spp reference of the Mitsuba Cornell box.
+//!
+//! The reference has noise of its own, which would inflate the measured
+//! error. So there are two references from independent seeds, A and B:
+//! the image is compared with their mean, whose noise variance is
+//! `E|A - B|^2 / 4` (each has variance `v`, the mean `v / 2`, and
+//! `E|A - B|^2 = 2 v`); that is subtracted from the squared error. The
+//! truth so measured does not depend on the estimator under test.
+
+use lucent_assets::load_scene;
+use lucent_geom::Vec3;
+use lucent_render::{RenderScene, RenderSettings, extract, metrics, render, render_to_error};
+use std::path::Path;
+
+/// How far the estimate may be from the truth: the truth must be at most
+/// `FACTOR` times the estimate (the render must not claim to be better
+/// than it is by more than that) and at least the estimate over `FACTOR`.
+const FACTOR: f64 = 2.0;
+
+fn cornell(width: u32, height: u32) -> (RenderScene, RenderSettings) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../res/scenes/cornell-mitsuba.toml");
+    let (scene, _) = load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+    let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+    let mut settings = scene.settings;
+    (settings.width, settings.height) = (width, height);
+    (rs, settings)
+}
+
+/// The true relative RMSE of `image`: against the mean of two independent
+/// references, with the mean's own noise taken out.
+fn true_relative_rmse(image: &[Vec3], a: &[Vec3], b: &[Vec3]) -> f64 {
+    let mean: Vec<Vec3> = a.iter().zip(b).map(|(a, b)| (*a + *b) * 0.5).collect();
+    let e = metrics::compare(image, &mean).unwrap_or_else(|| panic!("sizes differ"));
+    let ab = metrics::rmse(a, b).unwrap_or_else(|| panic!("sizes differ"));
+    let mse = (e.rmse * e.rmse - ab * ab / 4.0).max(0.0);
+    mse.sqrt() * e.relative_rmse / e.rmse
+}
+
+/// Path traced at 24x24 (max depth 16, glass and mirror included), two
+/// targets, two seeds: each estimate must be within [`FACTOR`] of the
+/// truth, and over the four the truth must average (geometric mean) at most
+/// 1.5 times the estimate. Printed with `--nocapture`. Over 12 seeds at
+/// target 0.15 (with 2 x 2048-spp references) the ratio truth / estimate
+/// had a median of 1.05, from 0.82 to 1.17 but for one seed at 1.69: the
+/// estimate is slightly optimistic (the render stops on the first round
+/// whose estimate dips under the target, and rare bright paths are
+/// under-represented in the variance of the tiles that missed them), hence
+/// the stated factor. The references are 2 x 1024 spp, several times the
+/// mean spp of the renders, and the correction for their noise is checked
+/// to be smaller than the error it corrects.
+#[test]
+fn the_estimated_error_is_within_a_factor_of_two_of_the_true_error() {
+    let (rs, mut settings) = cornell(24, 24);
+    let reference = |seed| {
+        let s = RenderSettings {
+            spp: 1024,
+            seed,
+            ..settings
+        };
+        render(&rs, &s, &|_| {}).film.to_linear()
+    };
+    let (a, b) = (reference(1000), reference(1001));
+    let noise_ref = metrics::relative_rmse(&a, &b).unwrap_or_default() / 2.0;
+    let mut log_ratios = Vec::new();
+    for target in [0.25, 0.15] {
+        for seed in [0, 1] {
+            settings.seed = seed;
+            let out = render_to_error(&rs, &settings, target, 4096);
+            assert!(out.reached_target, "{target}: {}", out.estimated_error);
+            let truth = true_relative_rmse(&out.film.to_linear(), &a, &b);
+            let ratio = truth / out.estimated_error;
+            eprintln!(
+                "target {target} seed {seed}: estimate {:.4}, true {truth:.4} (ratio {ratio:.2}), reference noise {noise_ref:.4}, mean {:.0} spp",
+                out.estimated_error,
+                out.mean_spp()
+            );
+            assert!(noise_ref < truth, "the reference is too noisy to judge");
+            log_ratios.push(ratio.ln());
+            assert!(
+                (1.0 / FACTOR..=FACTOR).contains(&ratio),
+                "target {target}, seed {seed}: estimated {}, true {truth}",
+                out.estimated_error
+            );
+        }
+    }
+    let mean_ratio = (log_ratios.iter().sum::<f64>() / log_ratios.len() as f64).exp();
+    assert!(mean_ratio <= 1.5, "truth / estimate averages {mean_ratio}");
+}
