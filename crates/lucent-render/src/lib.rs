@@ -4,7 +4,8 @@
 //! world) into a [`RenderScene`] of plain vectors addressed by `u32`, with a
 //! two-level BVH; [`render_samples`] then traces it with the report's
 //! Whitted integrator ([`whitted`]) into a [`Film`], in parallel over image
-//! rows with rayon.
+//! rows with rayon. [`progressive`] renders to a time budget or, sampling
+//! adaptively, to an estimated error.
 //!
 //! Invariants:
 //! - only `extract.rs` sees hecs; the kernel works on [`RenderScene`];

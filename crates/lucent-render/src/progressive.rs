@@ -74,7 +74,9 @@ use std::time::{Duration, Instant};
 /// [`render`](crate::render) at that spp.
 ///
 /// The first sample per pixel is always taken, even past the budget.
-/// `progress` is called with the spp reached after each pass. The ray
+/// A copy of the film is kept to undo a cut pass, so the render needs
+/// twice the film's memory. `progress` is called with the spp reached
+/// after each pass. The ray
 /// counts are those of the samples kept (a pass undone at the deadline is
 /// not counted). See the [module documentation](self) for the scheduling.
 pub fn render_for(
