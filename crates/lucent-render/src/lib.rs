@@ -38,6 +38,7 @@ pub mod flat;
 pub mod lights;
 pub mod metrics;
 pub mod path;
+pub mod quality;
 mod render;
 pub mod whitted;
 
@@ -48,6 +49,7 @@ pub use extract::{
 pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;
 pub use lucent_scene::{Integrator, RenderSettings, Shading};
+pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{
     RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, render_samples_cancellable,
     with_threads,
