@@ -1,5 +1,5 @@
 //! Named quality presets: plain settings that trade render time for
-//! accuracy, from a quick Whitted preview to a path-traced reference.
+//! accuracy, from a quick Whitted preview to a low-noise path-traced render.
 //!
 //! A preset is data, not behaviour: [`QualityPreset::apply`] copies its
 //! numbers into a [`RenderSettings`] and [`QualityPreset::extract_options`]
@@ -76,7 +76,7 @@ pub const PRESETS: [QualityPreset; 4] = [
     },
     QualityPreset {
         name: "interactive",
-        description: "path tracing, 8 samples, paths of up to 5 segments: physically based in under a second, noisy",
+        description: "path tracing, 8 samples, paths of up to 5 segments: physically based but noisy",
         resolution_scale: 1.0,
         spp: 8,
         integrator: Integrator::Path,
@@ -88,7 +88,7 @@ pub const PRESETS: [QualityPreset; 4] = [
     },
     QualityPreset {
         name: "final",
-        description: "path tracing, 64 samples, paths of up to 8 segments: little noise",
+        description: "path tracing, 64 samples, paths of up to 8 segments: a finished image, some noise",
         resolution_scale: 1.0,
         spp: 64,
         integrator: Integrator::Path,
@@ -100,7 +100,7 @@ pub const PRESETS: [QualityPreset; 4] = [
     },
     QualityPreset {
         name: "reference",
-        description: "path tracing, 512 samples, paths of up to 16 segments, the best BVH: close to converged",
+        description: "path tracing, 512 samples, paths of up to 16 segments, the best BVH: low noise, for comparisons",
         resolution_scale: 1.0,
         spp: 512,
         integrator: Integrator::Path,
