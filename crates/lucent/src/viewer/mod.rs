@@ -68,7 +68,9 @@ pub struct ViewArgs {
     /// Frames per second to aim for while moving (overrides every preset's).
     #[arg(long, value_name = "FPS", value_parser = parse_fps)]
     target_fps: Option<f32>,
-    /// Quit after this many displayed frames (for scripted runs and tests).
+    /// Quit after this many displayed frames, or once the image is finished
+    /// (refined to its samples per pixel) if that comes first (for
+    /// scripted runs and tests).
     #[arg(long, value_name = "N")]
     frames: Option<u64>,
     /// Save the last displayed frame to this PNG file on exit.
@@ -235,8 +237,11 @@ impl App {
                     let _ = writeln!(std::io::stdout(), "{}", report.json());
                 }
                 self.title = Some(self.shown.title(&self.name, &frame, &self.view));
+                // A finished image gets no more frames until the next input,
+                // so a frame count must not wait for them.
+                let finished = self.view.is_finished(&frame);
                 self.shown.pixels = frame.pixels;
-                go_on = self.max_frames.is_none_or(|n| self.shown.count < n);
+                go_on = self.max_frames.is_none_or(|n| self.shown.count < n && !finished);
             }
             _ => self.window.update(),
         }
@@ -393,6 +398,14 @@ impl ViewState {
             // The preset's samples, or the scene's without one.
             max_spp: self.max_spp.unwrap_or(self.settings.spp),
         }
+    }
+
+    /// Whether `frame` is the finished image of the current request: the
+    /// still camera refined to its samples per pixel (the worker then
+    /// idles until something changes).
+    fn is_finished(&self, frame: &worker::Frame) -> bool {
+        let r = self.request();
+        frame.refined && !r.moving && frame.generation == r.generation && frame.samples >= r.max_spp.max(1)
     }
 
     /// The preset's name, or `scene` before one is picked.

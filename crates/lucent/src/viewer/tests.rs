@@ -205,3 +205,33 @@ fn flags_override_every_preset() {
         (Integrator::Whitted, 4)
     );
 }
+
+#[test]
+fn a_frame_refined_to_the_cap_of_the_current_request_is_finished() {
+    let t0 = Instant::now();
+    let args = ViewArgs {
+        max_spp: Some(4),
+        ..ViewArgs::default()
+    };
+    let mut v = view(&args, t0);
+    let r = v.request();
+    let frame = |generation, samples, refined| worker::Frame {
+        generation,
+        rig: r.rig,
+        pixels: Vec::new(),
+        width: 1,
+        height: 1,
+        samples,
+        refined,
+        render_s: 0.0,
+        output_s: 0.0,
+    };
+    assert!(v.is_finished(&frame(r.generation, 4, true)));
+    assert!(!v.is_finished(&frame(r.generation, 3, true)), "below the cap");
+    assert!(!v.is_finished(&frame(r.generation, 4, false)), "a preview");
+    assert!(!v.is_finished(&frame(r.generation - 1, 4, true)), "an older request");
+    // While the camera moves nothing is finished.
+    assert!(v.apply(&drag(5.0), t0));
+    let g = v.request().generation;
+    assert!(!v.is_finished(&frame(g, 4, true)));
+}
