@@ -40,6 +40,7 @@ pub mod lights;
 pub mod metrics;
 pub mod path;
 pub mod progressive;
+pub mod quality;
 mod render;
 pub mod whitted;
 
@@ -51,6 +52,7 @@ pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;
 pub use lucent_scene::{Integrator, RenderSettings, Shading};
 pub use progressive::{AdaptiveOutput, render_for, render_to_error};
+pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{
     RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, render_samples_cancellable,
     with_threads,

@@ -82,51 +82,82 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     let t0 = Instant::now();
     let mut v = view(&ViewArgs::default(), t0);
     let g = v.request().generation;
-    assert_eq!(v.request().max_spp, PRESETS[DEFAULT_PRESET].max_spp);
-    // Picking the preset already in use changes nothing.
-    let same = FrameInput {
-        preset: Some(DEFAULT_PRESET),
-        ..FrameInput::default()
-    };
-    assert!(!v.apply(&same, t0));
-    let draft = FrameInput {
-        preset: Some(0),
-        ..FrameInput::default()
-    };
-    assert!(v.apply(&draft, t0));
+    // Before a preset is picked: the scene's own settings, at window size.
     let r = v.request();
-    assert!(!r.moving && r.generation == g + 1);
-    assert_eq!((r.max_spp, r.settings.max_depth), (PRESETS[0].max_spp, 1));
-    assert!((r.frame_budget_s - 1.0 / PRESETS[0].target_fps).abs() < 1e-6);
+    assert_eq!(r.settings, view(&ViewArgs::default(), t0).settings);
+    assert_eq!((r.max_spp, r.still_scale, r.settings.max_depth), (1, 1.0, 5));
+    assert!((r.frame_budget_s - 1.0 / SCENE.target_fps).abs() < 1e-6);
+    assert_eq!(v.preset_name(), "scene");
+    let pick = |p: usize| FrameInput {
+        preset: Some(p),
+        ..FrameInput::default()
+    };
+    let interactive = &PRESETS[1];
+    assert!(v.apply(&pick(1), t0));
+    let r = v.request();
+    assert_eq!((r.generation, r.max_spp), (g + 1, interactive.spp));
+    assert_eq!(
+        (r.settings.integrator, r.settings.max_depth, r.settings.rr_depth),
+        (interactive.integrator, interactive.max_depth, interactive.rr_depth)
+    );
+    assert_eq!(v.preset_name(), "interactive");
+    // Picking the preset already in use changes nothing.
+    assert!(!v.apply(&pick(1), t0));
+    // The preview preset: its samples, depth and shading, its resolution
+    // scale for the still image, the window's size unchanged.
+    let preview = &PRESETS[0];
+    assert!(v.apply(&pick(0), t0));
+    let r = v.request();
+    assert!(!r.moving && r.generation == g + 2);
+    assert_eq!((r.max_spp, r.settings.max_depth), (preview.spp, preview.max_depth));
+    assert_eq!(
+        (r.settings.shading, r.settings.min_weight),
+        (Shading::Gouraud, preview.min_weight)
+    );
+    assert_eq!((r.settings.width, r.settings.height), (640, 360));
+    assert!((r.still_scale * preview.resolution_scale - 1.0).abs() < 1e-6);
+    assert!((r.frame_budget_s - 1.0 / MOTION[0].target_fps).abs() < 1e-6);
     let shading = FrameInput {
         toggle_shading: true,
         ..FrameInput::default()
     };
     assert!(v.apply(&shading, t0));
     assert_eq!(v.request().settings.shading, Shading::Phong);
-    assert_eq!(v.request().generation, g + 2);
-    // Back to a preset without a depth cap: the scene's depth returns.
-    let quality = FrameInput {
-        preset: Some(2),
-        ..FrameInput::default()
-    };
-    assert!(v.apply(&quality, t0));
-    assert_eq!(v.request().settings.max_depth, 5);
-    // The integrator key switches to the path tracer and back; the draft
-    // preset's depth cap counts two more segments for the path tracer.
+    assert_eq!(v.request().generation, g + 3);
+    // The final preset path traces at full resolution.
+    let final_ = &PRESETS[2];
+    assert!(v.apply(&pick(2), t0));
+    let r = v.request();
+    assert_eq!(r.settings.integrator, Integrator::Path);
+    assert_eq!(
+        (r.settings.max_depth, r.settings.rr_depth),
+        (final_.max_depth, final_.rr_depth)
+    );
+    assert_eq!((r.still_scale, r.max_spp), (1.0, final_.spp));
+    // The integrator key switches to Whitted and back, keeping the chains
+    // the depth shows: a path depth d is a Whitted depth d - 2.
     let integrator = FrameInput {
         toggle_integrator: true,
         ..FrameInput::default()
     };
     assert!(v.apply(&integrator, t0));
-    assert_eq!(v.request().settings.integrator, Integrator::Path);
-    assert_eq!(v.request().generation, g + 4);
-    assert!(v.apply(&draft, t0));
-    assert_eq!(v.request().settings.max_depth, 3);
+    assert_eq!(
+        (v.request().settings.integrator, v.request().settings.max_depth),
+        (Integrator::Whitted, final_.max_depth - 2)
+    );
+    assert_eq!(v.request().generation, g + 5);
     assert!(v.apply(&integrator, t0));
     assert_eq!(
         (v.request().settings.integrator, v.request().settings.max_depth),
-        (Integrator::Whitted, 1)
+        (Integrator::Path, final_.max_depth)
+    );
+    // A preset key undoes the switches: preview is Whitted and Gouraud again.
+    assert!(v.apply(&integrator, t0) && v.apply(&shading, t0));
+    assert!(v.apply(&pick(0), t0));
+    let r = v.request();
+    assert_eq!(
+        (r.settings.integrator, r.settings.shading, r.settings.max_depth),
+        (Integrator::Whitted, Shading::Gouraud, preview.max_depth)
     );
 }
 
@@ -135,12 +166,18 @@ fn flags_override_every_preset() {
     let args = ViewArgs {
         max_spp: Some(3),
         target_fps: Some(10.0),
-        preset: Some(4),
+        quality: QualityArgs {
+            preset: lucent_render::quality::preset("final"),
+            max_depth: Some(4),
+            integrator: Some(crate::IntegratorArg::Path),
+            rr_depth: Some(2),
+            ..QualityArgs::default()
+        },
         ..ViewArgs::default()
     };
     let t0 = Instant::now();
     let mut v = view(&args, t0);
-    assert_eq!(PRESETS[v.preset].name, "final");
+    assert_eq!(v.preset_name(), "final");
     for (p, preset) in PRESETS.iter().enumerate() {
         let pick = FrameInput {
             preset: Some(p),
@@ -150,6 +187,51 @@ fn flags_override_every_preset() {
         let r = v.request();
         assert_eq!(r.max_spp, 3);
         assert!((r.frame_budget_s - 0.1).abs() < 1e-6);
-        assert_eq!(r.max_scale, preset.max_scale);
+        assert_eq!(r.max_scale, MOTION[p].max_scale);
+        assert!((r.still_scale * preset.resolution_scale - 1.0).abs() < 1e-6);
+        let s = r.settings;
+        assert_eq!((s.integrator, s.max_depth, s.rr_depth), (Integrator::Path, 4, 2));
+        // What no flag sets still follows the preset.
+        assert_eq!(s.shading, preset.shading);
     }
+    // The integrator key still switches, but the depth stays the flag's.
+    let integrator = FrameInput {
+        toggle_integrator: true,
+        ..FrameInput::default()
+    };
+    assert!(v.apply(&integrator, t0));
+    assert_eq!(
+        (v.request().settings.integrator, v.request().settings.max_depth),
+        (Integrator::Whitted, 4)
+    );
+}
+
+#[test]
+fn a_frame_refined_to_the_cap_of_the_current_request_is_finished() {
+    let t0 = Instant::now();
+    let args = ViewArgs {
+        max_spp: Some(4),
+        ..ViewArgs::default()
+    };
+    let mut v = view(&args, t0);
+    let r = v.request();
+    let frame = |generation, samples, refined| worker::Frame {
+        generation,
+        rig: r.rig,
+        pixels: Vec::new(),
+        width: 1,
+        height: 1,
+        samples,
+        refined,
+        render_s: 0.0,
+        output_s: 0.0,
+    };
+    assert!(v.is_finished(&frame(r.generation, 4, true)));
+    assert!(!v.is_finished(&frame(r.generation, 3, true)), "below the cap");
+    assert!(!v.is_finished(&frame(r.generation, 4, false)), "a preview");
+    assert!(!v.is_finished(&frame(r.generation - 1, 4, true)), "an older request");
+    // While the camera moves nothing is finished.
+    assert!(v.apply(&drag(5.0), t0));
+    let g = v.request().generation;
+    assert!(!v.is_finished(&frame(g, 4, true)));
 }

@@ -1,0 +1,326 @@
+//! Named quality presets: plain settings that trade render time for
+//! accuracy, from a quick Whitted preview to a low-noise path-traced render.
+//!
+//! A preset is data, not behaviour: [`QualityPreset::apply`] copies its
+//! numbers into a [`RenderSettings`] and [`QualityPreset::extract_options`]
+//! gives the BVH build effort for [`extract_with`](crate::extract_with).
+//! The command line (`--preset`) and the viewer's quality keys both pick
+//! from [`PRESETS`], so the four names mean the same everywhere.
+//!
+//! Accuracy is judged against physical truth, a converged path-traced
+//! render, and each costlier preset is closer to it. So only the cheapest
+//! preset uses the report's Whitted model (Gouraud shading at half
+//! resolution: the familiar look, fast, but a different model: no indirect
+//! light, an ambient term and Phong lobes without the 1/pi of a BSDF, so
+//! on the seed scene it is about three times too bright); the others path
+//! trace with more samples, longer paths, later Russian roulette and, for
+//! the reference, the best BVH. Per-pixel Whitted shading measured no closer
+//! to the path-traced truth than Gouraud on either test scene, so it is a
+//! flag (`--shading phong`), not a preset. `cargo xtask tradeoff` measures
+//! the time and error of each preset.
+
+use crate::{BuildQuality, ExtractOptions, Integrator, RenderSettings, Shading};
+
+/// One named speed-for-accuracy setting.
+///
+/// ```
+/// use lucent_render::{RenderSettings, quality};
+/// let mut settings = RenderSettings { width: 640, height: 360, ..RenderSettings::default() };
+/// let preview = quality::preset("preview").expect("a built-in preset");
+/// preview.apply(&mut settings);
+/// assert_eq!((settings.width, settings.height), (320, 180));
+/// assert_eq!(settings.integrator, preview.integrator);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QualityPreset {
+    /// Lowercase name: `preview`, `interactive`, `final` or `reference`.
+    pub name: &'static str,
+    /// One line saying what the preset is for (help text, viewer title,
+    /// reports).
+    pub description: &'static str,
+    /// Fraction of the scene's width and height rendered (1.0: full size).
+    pub resolution_scale: f32,
+    /// Samples (primary rays) per pixel.
+    pub spp: u32,
+    /// Light transport: the report's Whitted model or the path tracer.
+    pub integrator: Integrator,
+    /// Whitted: lighting at the vertices (Gouraud) or per pixel (Phong).
+    /// The path tracer always shades per pixel and ignores it.
+    pub shading: Shading,
+    /// Path length limit, as [`RenderSettings::max_depth`] (Whitted:
+    /// recursion depth; path: segments from the camera).
+    pub max_depth: u32,
+    /// Whitted: rays whose weight falls below this are not traced. Ignored
+    /// by the path tracer.
+    pub min_weight: f32,
+    /// Path tracer: bounces before Russian roulette may end a path.
+    /// Ignored by Whitted (kept at the settings' default).
+    pub rr_depth: u32,
+    /// Effort of the BVH builds.
+    pub bvh_quality: BuildQuality,
+}
+
+/// The presets, cheapest first (the viewer's keys F1-F4 in this order).
+pub const PRESETS: [QualityPreset; 4] = [
+    QualityPreset {
+        name: "preview",
+        description: "the report's Whitted model with Gouraud shading, half resolution, 1 sample: a quick look",
+        resolution_scale: 0.5,
+        spp: 1,
+        integrator: Integrator::Whitted,
+        shading: Shading::Gouraud,
+        max_depth: 2,
+        min_weight: 0.05,
+        rr_depth: 5,
+        bvh_quality: BuildQuality::Fast,
+    },
+    QualityPreset {
+        name: "interactive",
+        description: "path tracing, 8 samples, paths of up to 5 segments: physically based but noisy",
+        resolution_scale: 1.0,
+        spp: 8,
+        integrator: Integrator::Path,
+        shading: Shading::Phong,
+        max_depth: 5,
+        min_weight: 0.01,
+        rr_depth: 3,
+        bvh_quality: BuildQuality::Default,
+    },
+    QualityPreset {
+        name: "final",
+        description: "path tracing, 64 samples, paths of up to 8 segments: a finished image, some noise",
+        resolution_scale: 1.0,
+        spp: 64,
+        integrator: Integrator::Path,
+        shading: Shading::Phong,
+        max_depth: 8,
+        min_weight: 0.01,
+        rr_depth: 5,
+        bvh_quality: BuildQuality::Default,
+    },
+    QualityPreset {
+        name: "reference",
+        description: "path tracing, 512 samples, paths of up to 16 segments, the best BVH: low noise, for comparisons",
+        resolution_scale: 1.0,
+        spp: 512,
+        integrator: Integrator::Path,
+        shading: Shading::Phong,
+        max_depth: 16,
+        min_weight: 0.01,
+        rr_depth: 8,
+        bvh_quality: BuildQuality::High,
+    },
+];
+
+/// The preset called `name` (exact, lowercase), if there is one.
+///
+/// ```
+/// use lucent_render::quality::{PRESETS, preset};
+/// assert_eq!(preset("final").map(|p| p.spp), Some(PRESETS[2].spp));
+/// assert!(preset("ultra").is_none());
+/// ```
+pub fn preset(name: &str) -> Option<&'static QualityPreset> {
+    PRESETS.iter().find(|p| p.name == name)
+}
+
+/// The preset names, cheapest first, joined by `", "` (for error messages
+/// and help text).
+pub fn preset_names() -> String {
+    PRESETS.map(|p| p.name).join(", ")
+}
+
+impl QualityPreset {
+    /// Writes the preset into `settings`: width and height become the
+    /// current ones times [`resolution_scale`](Self::resolution_scale)
+    /// (rounded to the nearest pixel, at least 1), and `spp`, `integrator`,
+    /// `shading`, `max_depth`, `min_weight` and `rr_depth` are replaced.
+    /// The seed is kept. Applying twice scales the size twice, so apply a
+    /// preset to the scene's own settings, then explicit overrides.
+    pub fn apply(&self, settings: &mut RenderSettings) {
+        settings.width = scale_dimension(settings.width, self.resolution_scale);
+        settings.height = scale_dimension(settings.height, self.resolution_scale);
+        settings.spp = self.spp;
+        settings.integrator = self.integrator;
+        settings.shading = self.shading;
+        settings.max_depth = self.max_depth;
+        settings.min_weight = self.min_weight;
+        settings.rr_depth = self.rr_depth;
+    }
+
+    /// The extract options this preset renders with (its BVH build effort;
+    /// everything else at its default).
+    #[allow(
+        clippy::needless_update,
+        reason = "ExtractOptions grows fields; the ones a preset does not set keep their defaults"
+    )]
+    pub fn extract_options(&self) -> ExtractOptions {
+        ExtractOptions {
+            bvh_quality: self.bvh_quality,
+            ..ExtractOptions::default()
+        }
+    }
+}
+
+/// `size * scale` rounded to the nearest integer, at least 1 (a non-finite
+/// or non-positive scale gives 1).
+fn scale_dimension(size: u32, scale: f32) -> u32 {
+    let scaled = (f64::from(size) * f64::from(scale)).round();
+    if scaled.is_finite() && scaled >= 1.0 {
+        // At most u32::MAX * the scale; saturate rather than wrap.
+        scaled.min(f64::from(u32::MAX)) as u32
+    } else {
+        1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Path-tracer segments a preset's depth stands for: a Whitted depth
+    /// `d` follows the same chains as a path depth `d + 2`.
+    fn path_depth(p: &QualityPreset) -> u32 {
+        match p.integrator {
+            Integrator::Whitted => p.max_depth + 2,
+            Integrator::Path => p.max_depth,
+        }
+    }
+
+    fn model_rank(p: &QualityPreset) -> u32 {
+        match (p.integrator, p.shading) {
+            (Integrator::Whitted, Shading::Gouraud) => 0,
+            (Integrator::Whitted, Shading::Phong) => 1,
+            (Integrator::Path, _) => 2,
+        }
+    }
+
+    fn bvh_rank(q: BuildQuality) -> u32 {
+        match q {
+            BuildQuality::Fast => 0,
+            BuildQuality::Default => 1,
+            BuildQuality::High => 2,
+        }
+    }
+
+    #[test]
+    fn presets_are_ordered_by_cost() {
+        for pair in PRESETS.windows(2) {
+            let (a, b) = (&pair[0], &pair[1]);
+            assert!(a.resolution_scale <= b.resolution_scale, "{} {}", a.name, b.name);
+            assert!(a.spp <= b.spp, "{} {}", a.name, b.name);
+            assert!(path_depth(a) <= path_depth(b), "{} {}", a.name, b.name);
+            assert!(model_rank(a) <= model_rank(b), "{} {}", a.name, b.name);
+            assert!(
+                bvh_rank(a.bvh_quality) <= bvh_rank(b.bvh_quality),
+                "{} {}",
+                a.name,
+                b.name
+            );
+            // Each step costs more in at least one of these.
+            let pixels = |p: &QualityPreset| p.resolution_scale * p.resolution_scale;
+            assert!(
+                pixels(a) < pixels(b) || a.spp < b.spp || model_rank(a) < model_rank(b),
+                "{} {}",
+                a.name,
+                b.name
+            );
+            if a.integrator == Integrator::Whitted && b.integrator == Integrator::Whitted {
+                assert!(a.min_weight >= b.min_weight, "{} {}", a.name, b.name);
+            }
+            if a.integrator == Integrator::Path && b.integrator == Integrator::Path {
+                assert!(a.rr_depth <= b.rr_depth, "{} {}", a.name, b.name);
+            }
+        }
+        // The cheapest is the report's model, the costliest physically based.
+        assert_eq!(model_rank(&PRESETS[0]), 0);
+        assert_eq!(PRESETS[PRESETS.len() - 1].integrator, Integrator::Path);
+        assert!(PRESETS[0].resolution_scale < 1.0);
+        assert_eq!(PRESETS[PRESETS.len() - 1].resolution_scale, 1.0);
+    }
+
+    #[test]
+    fn presets_are_valid_settings() {
+        for p in &PRESETS {
+            assert!(p.resolution_scale > 0.0 && p.resolution_scale <= 1.0, "{}", p.name);
+            assert!(p.spp >= 1 && p.rr_depth >= 1 && p.max_depth <= 64, "{}", p.name);
+            assert!((0.0..=1.0).contains(&p.min_weight), "{}", p.name);
+            assert!(!p.description.is_empty() && !p.description.contains('\n'), "{}", p.name);
+            if p.integrator == Integrator::Path {
+                // One segment shows only emitters; two add direct light.
+                assert!(p.max_depth >= 3, "{}", p.name);
+            }
+        }
+    }
+
+    #[test]
+    fn names_are_unique_lowercase_and_round_trip() {
+        for (i, p) in PRESETS.iter().enumerate() {
+            assert!(p.name.chars().all(|c| c.is_ascii_lowercase()), "{}", p.name);
+            assert!(PRESETS[..i].iter().all(|q| q.name != p.name), "{}", p.name);
+            assert_eq!(preset(p.name), Some(p), "{}", p.name);
+        }
+        assert_eq!(preset_names(), "preview, interactive, final, reference");
+        for bad in ["", "Preview", "preview ", "draft", "quality"] {
+            assert!(preset(bad).is_none(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn apply_scales_rounds_and_keeps_at_least_one_pixel() {
+        let custom = QualityPreset {
+            resolution_scale: 0.5,
+            ..PRESETS[3]
+        };
+        let check = |preset: &QualityPreset, size: (u32, u32), want: (u32, u32)| {
+            let mut s = RenderSettings {
+                width: size.0,
+                height: size.1,
+                seed: 7,
+                ..RenderSettings::default()
+            };
+            preset.apply(&mut s);
+            assert_eq!((s.width, s.height), want, "{} {size:?}", preset.name);
+            assert_eq!(s.seed, 7, "the seed is the caller's");
+            assert_eq!(
+                (s.spp, s.integrator, s.shading, s.max_depth, s.min_weight, s.rr_depth),
+                (
+                    preset.spp,
+                    preset.integrator,
+                    preset.shading,
+                    preset.max_depth,
+                    preset.min_weight,
+                    preset.rr_depth
+                )
+            );
+        };
+        check(&custom, (640, 360), (320, 180));
+        // Halves round to the nearest: 0.5 * 3 = 1.5 -> 2, 0.5 * 1 -> 1.
+        check(&custom, (3, 1), (2, 1));
+        check(&PRESETS[3], (640, 360), (640, 360));
+        let tiny = QualityPreset {
+            resolution_scale: 0.01,
+            ..PRESETS[0]
+        };
+        check(&tiny, (640, 20), (6, 1));
+        check(&tiny, (1, 1), (1, 1));
+        for bad in [0.0, -1.0, f32::NAN] {
+            let broken = QualityPreset {
+                resolution_scale: bad,
+                ..PRESETS[0]
+            };
+            check(&broken, (640, 360), (1, 1));
+        }
+        assert_eq!(scale_dimension(u32::MAX, 2.0), u32::MAX);
+        assert_eq!(scale_dimension(333, 0.25), 83);
+    }
+
+    #[test]
+    fn extract_options_carry_the_build_quality() {
+        for p in &PRESETS {
+            let mut o = p.extract_options();
+            assert_eq!(o.bvh_quality, p.bvh_quality);
+            o.bvh_quality = ExtractOptions::default().bvh_quality;
+            assert_eq!(o, ExtractOptions::default(), "nothing else changes");
+        }
+    }
+}
