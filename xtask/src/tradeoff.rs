@@ -131,7 +131,7 @@ pub fn tradeoff(args: &[String]) -> Result<(), String> {
         let mut loads = Vec::new();
         if opts.reference_only {
             for scene in &opts.scenes {
-                reference_of(scene, &opts)?;
+                reference_of(scene, &opts, &out_dir.join("cache"))?;
             }
             return Ok((results, current_threads(), loads));
         }
@@ -183,7 +183,11 @@ fn shown(path: &Path) -> String {
 }
 
 /// A loaded scene, its file stem and its reference.
-fn reference_of(path: &Path, opts: &Opts) -> Result<(lucent_scene::Scene, String, RefSettings, Reference), String> {
+fn reference_of(
+    path: &Path,
+    opts: &Opts,
+    cache: &Path,
+) -> Result<(lucent_scene::Scene, String, RefSettings, Reference), String> {
     let stem = path
         .file_stem()
         .map_or_else(|| "scene".to_owned(), |s| s.to_string_lossy().into_owned());
@@ -203,12 +207,12 @@ fn reference_of(path: &Path, opts: &Opts) -> Result<(lucent_scene::Scene, String
         max_depth: REF_MAX_DEPTH,
         rr_depth: REF_RR_DEPTH,
     };
-    let reference = get_reference(path, &stem, &bytes, &scene, &ref_settings)?;
+    let reference = get_reference(path, &stem, &bytes, &scene, &ref_settings, cache)?;
     Ok((scene, stem, ref_settings, reference))
 }
 
 fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult, String> {
-    let (scene, stem, ref_settings, reference) = reference_of(path, opts)?;
+    let (scene, stem, ref_settings, reference) = reference_of(path, opts, &out_dir.join("cache"))?;
     let base = scene.settings;
 
     // Presets take turns: run 1 of each, then run 2 of each, ...
@@ -297,10 +301,11 @@ fn get_reference(
     bytes: &[u8],
     scene: &lucent_scene::Scene,
     settings: &RefSettings,
+    cache: &Path,
 ) -> Result<Reference, String> {
     let root = crate::root();
     let (key, manifest) = reference::cache_key(&root, path, bytes, settings, &reference::renderer_inputs(&root))?;
-    let exr = root.join("target/tradeoff/cache").join(format!("{stem}-{key}.exr"));
+    let exr = cache.join(format!("{stem}-{key}.exr"));
     if let Some((image, noise_rmse, render_s)) = reference::load_cached(&exr)
         && image.width == settings.width
         && image.height == settings.height
@@ -472,6 +477,54 @@ mod tests {
         assert!(parse(&args("--runs 0")).is_err());
         assert!(parse(&args("--runs")).is_err());
         assert!(parse(&args("--bogus")).is_err());
+    }
+
+    /// The whole measurement on a tiny scene (12x8 pixels, a 32-spp
+    /// reference): every preset measured, outputs written, the reference
+    /// cached and found again. Times are not checked.
+    #[test]
+    fn measures_a_tiny_scene_end_to_end() {
+        let dir = std::env::temp_dir().join(format!("lucent-tradeoff-e2e-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("out/images")).unwrap_or_else(|e| panic!("{e}"));
+        let scene = dir.join("tiny.toml");
+        let text = "[render]\nwidth = 12\nheight = 8\n\n[camera]\ncenter = [0.0, 0.0, 0.0]\nradius = 4.0\n\n\
+                    [[lights]]\ntype = \"directional\"\nto_light = [0.3, 1.0, 0.5]\nintensity = 2.0\n\n\
+                    [materials.white]\nkd = 0.8\n\n\
+                    [[objects]]\nname = \"ball\"\nshape = \"sphere\"\nsubdivisions = 2\nmaterial = \"white\"\n";
+        std::fs::write(&scene, text).unwrap_or_else(|e| panic!("{e}"));
+        let opts = parse(&[
+            scene.display().to_string(),
+            "--runs".into(),
+            "2".into(),
+            "--ref-spp".into(),
+            "32".into(),
+        ])
+        .unwrap_or_else(|e| panic!("{e}"));
+        let out = dir.join("out");
+        let first = measure_scene(&scene, &opts, &out).unwrap_or_else(|e| panic!("{e}"));
+        assert!(!first.reference.cached);
+        assert_eq!(first.presets.len(), PRESETS.len());
+        for (p, want) in first.presets.iter().zip(&PRESETS) {
+            assert_eq!(p.name, want.name);
+            assert_eq!(p.runs.len(), 2);
+            assert!(p.error.rmse.is_finite() && p.error.rmse > 0.0, "{p:?}");
+            assert!((0.0..=1.0).contains(&p.flip), "{p:?}");
+            assert!(out.join(format!("images/tiny-{}.png", p.name)).is_file());
+        }
+        // 32 spp in 16 batches: a noise estimate exists.
+        assert!(first.reference.noise_rmse.is_finite() && first.reference.noise_rmse > 0.0);
+        assert!(out.join("tiny-contact.png").is_file());
+        let cached = std::fs::read_dir(out.join("cache")).map_or(0, |d| d.count());
+        assert_eq!(cached, 2, "an EXR and its manifest");
+        let again = measure_scene(&scene, &opts, &out).unwrap_or_else(|e| panic!("{e}"));
+        assert!(again.reference.cached);
+        assert_eq!(again.reference.key, first.reference.key);
+        // Deterministic renders: the same errors from the cached reference.
+        for (a, b) in first.presets.iter().zip(&again.presets) {
+            assert_eq!(a.error, b.error, "{}", a.name);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

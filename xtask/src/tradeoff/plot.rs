@@ -68,7 +68,9 @@ fn draw_error_vs_time(scenes: &[SceneResult]) -> Result<(u32, u32, Vec<u8>), Str
             {
                 let pts: Vec<(f64, f64, &str)> =
                     by_time.iter().map(|p| (p.time(), value(p), p.name.as_str())).collect();
+                // Room on the right for the slowest point's name.
                 let xr = log_range(pts.iter().map(|p| p.0));
+                let xr = xr.start..xr.end * 2.5;
                 let noise = (j == 0).then_some(sc.reference.noise_rmse).filter(|n| *n > 0.0);
                 let yr = log_range(pts.iter().map(|p| p.1).chain(noise));
                 let mut chart = ChartBuilder::on(&panels[2 * i + j])
