@@ -8,7 +8,7 @@
 use crate::{QualityArgs, prepare_scene};
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use lucent_render::{Integrator, current_threads, extract, render, with_threads};
+use lucent_render::{Integrator, current_threads, extract_with, render, with_threads};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -60,7 +60,7 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
     let threads = args.threads.map_or(0, usize::from);
     let json = with_threads(threads, || -> Result<String> {
         let t_build = Instant::now();
-        let rs = extract(&scene).with_context(|| name.clone())?;
+        let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
             // The path tracer's one-level tree is built on demand; build it
             // here so it counts as BVH time, not render time.

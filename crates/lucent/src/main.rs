@@ -16,6 +16,8 @@ mod viewer;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use lucent_assets::LoadReport;
+use lucent_render::quality::{self, QualityPreset};
+use lucent_render::{ExtractOptions, RenderSettings};
 use lucent_scene::{Integrator, Scene, Shading};
 use std::path::Path;
 use std::process::ExitCode;
@@ -44,9 +46,16 @@ enum Command {
     Info(info_cmd::InfoArgs),
 }
 
-/// Settings shared by `view` and `render`, overriding the scene's `[render]`.
+/// Settings shared by `view`, `render` and `bench render`, overriding the
+/// scene's `[render]`: first the preset, then each explicit flag.
 #[derive(Args, Clone, Debug, Default)]
 struct QualityArgs {
+    /// Quality preset: preview, interactive, final or reference (cheapest
+    /// first; see the README's table). It sets the resolution scale,
+    /// samples, integrator, shading, depth, roulette and BVH build effort;
+    /// explicit flags (--size, --spp, --max-depth, ...) override it.
+    #[arg(long, value_name = "NAME", value_parser = parse_preset)]
+    preset: Option<&'static QualityPreset>,
     /// Image size, WIDTHxHEIGHT (1 to 16384 each).
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     size: Option<(u32, u32)>,
@@ -85,8 +94,23 @@ enum ShadingArg {
 }
 
 impl QualityArgs {
+    /// Applies the preset to the scene's settings, then the explicit flags.
     fn apply(&self, scene: &mut Scene) {
-        let s = &mut scene.settings;
+        if let Some(p) = self.preset {
+            p.apply(&mut scene.settings);
+        }
+        self.apply_flags(&mut scene.settings);
+    }
+
+    /// How `extract_with` should build the scene: the preset's options, or
+    /// the defaults.
+    fn extract_options(&self) -> ExtractOptions {
+        self.preset
+            .map_or_else(ExtractOptions::default, |p| p.extract_options())
+    }
+
+    /// Applies the explicit flags only (not the preset).
+    fn apply_flags(&self, s: &mut RenderSettings) {
         if let Some((w, h)) = self.size {
             (s.width, s.height) = (w, h);
         }
@@ -115,6 +139,10 @@ impl QualityArgs {
             };
         }
     }
+}
+
+fn parse_preset(s: &str) -> Result<&'static QualityPreset, String> {
+    quality::preset(s).ok_or_else(|| format!("'{s}' is not a preset; the presets are {}", quality::preset_names()))
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -200,3 +228,6 @@ fn check_png_path(path: &Path) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod quality_args_tests;

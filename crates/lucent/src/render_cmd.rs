@@ -4,7 +4,7 @@ use crate::{QualityArgs, check_png_path, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use lucent_render::{Integrator, current_threads, extract, render, with_threads};
+use lucent_render::{Integrator, current_threads, extract_with, render, with_threads};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -29,7 +29,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
     #[command(flatten)]
-    quality: QualityArgs,
+    pub(crate) quality: QualityArgs,
 }
 
 fn parse_ev(s: &str) -> Result<f32, String> {
@@ -54,7 +54,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let threads = args.threads.map_or(0, usize::from);
     let (rs, build_s, out, n_threads) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
-        let rs = extract(&scene).with_context(|| format!("{}", args.scene.display()))?;
+        let rs = extract_with(&scene, &args.quality.extract_options())
+            .with_context(|| format!("{}", args.scene.display()))?;
         if settings.integrator == Integrator::Path {
             // The path tracer's one-level tree is built on demand; build it
             // here so it counts as BVH time, not render time.

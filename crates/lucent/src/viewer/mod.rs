@@ -6,7 +6,8 @@
 //! displays whatever frame is newest; it polls every few milliseconds and
 //! never waits on a render. While the camera moves the worker renders
 //! previews sized to a measured frame budget; when it holds still it refines
-//! at full resolution up to the preset's sample cap ([`quality`]).
+//! at the preset's resolution up to its samples per pixel ([`quality`]: the
+//! four presets of [`lucent_render::quality`], plus how each moves).
 //! `--stats` prints one JSON line per displayed frame ([`stats`]).
 
 mod input;
@@ -19,11 +20,11 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use input::{FrameInput, ScriptedInput, WindowInput};
 use lucent_nav::{Buttons, HeldKeys, OrbitController};
-use lucent_render::{RenderSettings, extract};
+use lucent_render::{RenderSettings, extract_with};
 use lucent_scene::components::OrbitRig;
 use lucent_scene::{Integrator, Shading};
 use minifb::{Window, WindowOptions};
-use quality::{DEFAULT_PRESET, PRESETS};
+use quality::{DEFAULT_PRESET, MOTION, PRESETS};
 use stats::{FrameClock, FrameReport};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -37,7 +38,7 @@ pub const CONTROLS: &str = "Controls:
   middle/right drag   pan, the scene following the pointer
   mouse wheel         zoom in and out
   R                   reset the view
-  F1-F4 or 1-4        quality preset: draft, interactive (the default), quality, final
+  F1-F4 or 1-4        quality preset: preview, interactive (the default), final, reference
   G                   switch Gouraud / per-pixel Phong shading
   I                   switch integrator: the report's Whitted model / path tracing
   P                   save a screenshot (lucent-<unix ms>.png in the current directory)
@@ -45,9 +46,13 @@ pub const CONTROLS: &str = "Controls:
 
 The title shows frames per second, frame time, samples accumulated,
 resolution scale (window pixels per rendered pixel), preset and shading.
-While the camera moves, frames are rendered at the resolution that fits the
-preset's frame budget; when it stops, the full-resolution image refines
-until the preset's sample cap (or --max-spp).";
+The presets are the ones `lucent render --preset` takes (samples, depth,
+integrator, shading, resolution scale); G and I switch shading and
+integrator until the next preset key, and explicit flags (--max-depth,
+--integrator, ...) override every preset. While the camera moves, frames
+are rendered at the resolution that fits the preset's frame budget; when it
+stops, the image refines at the preset's resolution until its samples per
+pixel (or --max-spp).";
 
 /// Arguments of `lucent view`.
 #[derive(Args, Debug, Default)]
@@ -56,12 +61,9 @@ pub struct ViewArgs {
     /// Scene file (TOML); the built-in seed scene when omitted.
     scene: Option<PathBuf>,
     /// Stop refining once this many samples per pixel have accumulated
-    /// (overrides every preset's cap).
+    /// (overrides every preset's samples).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=65536))]
     max_spp: Option<u32>,
-    /// Quality preset to start with, 1 to 4 (as the keys F1-F4).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=4))]
-    preset: Option<u8>,
     /// Frames per second to aim for while moving (overrides every preset's).
     #[arg(long, value_name = "FPS", value_parser = parse_fps)]
     target_fps: Option<f32>,
@@ -84,7 +86,7 @@ pub struct ViewArgs {
     #[arg(long, value_name = "S", default_value_t = 1)]
     soak_seed: u64,
     #[command(flatten)]
-    quality: QualityArgs,
+    pub(crate) quality: QualityArgs,
 }
 
 fn parse_fps(s: &str) -> Result<f32, String> {
@@ -116,8 +118,11 @@ pub fn run(args: ViewArgs) -> Result<()> {
     }
     check_display()?;
     let (mut scene, _report, name) = load_scene(args.scene.as_deref())?;
-    args.quality.apply(&mut scene);
-    let rs = extract(&scene).with_context(|| name.clone())?;
+    // The window keeps the scene's size (or --size); a preset's resolution
+    // scale applies to the still image inside it, so only the flags here.
+    args.quality.apply_flags(&mut scene.settings);
+    // The BVH is built once, with the starting preset's build effort.
+    let rs = extract_with(&scene, &PRESETS[start_preset(&args)].extract_options()).with_context(|| name.clone())?;
     let (w, h) = (scene.settings.width, scene.settings.height);
     let mut window = Window::new(
         &format!("Lucent - {name}"),
@@ -265,14 +270,23 @@ impl Source {
     }
 }
 
+/// The preset named by `--preset`, or the default one.
+fn start_preset(args: &ViewArgs) -> usize {
+    args.quality
+        .preset
+        .and_then(|p| quality::index_of(p.name))
+        .unwrap_or(DEFAULT_PRESET)
+}
+
 /// The camera and settings the user has chosen, and whether they are
 /// still changing.
 struct ViewState {
     controller: OrbitController,
     rig: OrbitRig,
+    /// Settings at window size (`width` x `height` is the window).
     settings: RenderSettings,
-    /// The scene's own recursion depth (presets may cap it).
-    scene_depth: u32,
+    /// Explicit command-line settings, applied over every preset.
+    flags: QualityArgs,
     preset: usize,
     max_spp: Option<u32>,
     target_fps: Option<f32>,
@@ -285,13 +299,12 @@ struct ViewState {
 
 impl ViewState {
     fn new(rig: OrbitRig, settings: RenderSettings, args: &ViewArgs, now: Instant) -> Self {
-        let preset = args.preset.map_or(DEFAULT_PRESET, |p| usize::from(p).saturating_sub(1));
         let mut view = Self {
             controller: OrbitController::new(rig),
             rig,
             settings,
-            scene_depth: settings.max_depth,
-            preset: preset.min(PRESETS.len() - 1),
+            flags: args.quality.clone(),
+            preset: start_preset(args),
             max_spp: args.max_spp,
             target_fps: args.target_fps,
             generation: 1,
@@ -303,16 +316,13 @@ impl ViewState {
         view
     }
 
+    /// Takes the preset's samples, depth, integrator, shading and
+    /// roulette (the window keeps its size), then the explicit flags.
     fn apply_preset(&mut self) {
-        let p = &PRESETS[self.preset];
-        // A preset's depth cap is a Whitted recursion depth; the path
-        // tracer counts segments from the camera, two more for the same
-        // chains (the camera ray and the light segment).
-        let cap = match self.settings.integrator {
-            Integrator::Whitted => p.max_depth,
-            Integrator::Path => p.max_depth.map(|d| d + 2),
-        };
-        self.settings.max_depth = cap.map_or(self.scene_depth, |d| d.min(self.scene_depth));
+        let (width, height) = (self.settings.width, self.settings.height);
+        PRESETS[self.preset].apply(&mut self.settings);
+        (self.settings.width, self.settings.height) = (width, height);
+        self.flags.apply_flags(&mut self.settings);
     }
 
     /// Applies one frame of input; returns whether the request changed.
@@ -331,11 +341,17 @@ impl ViewState {
             changed_settings = true;
         }
         if input.toggle_integrator {
-            self.settings.integrator = match self.settings.integrator {
-                Integrator::Whitted => Integrator::Path,
-                Integrator::Path => Integrator::Whitted,
+            // A Whitted depth d follows the same chains as a path depth
+            // d + 2 (the camera ray and the light segment), so the switch
+            // keeps what the depth shows.
+            let d = self.settings.max_depth;
+            (self.settings.integrator, self.settings.max_depth) = match self.settings.integrator {
+                Integrator::Whitted => (Integrator::Path, d.saturating_add(2)),
+                Integrator::Path => (Integrator::Whitted, d.saturating_sub(2)),
             };
-            self.apply_preset();
+            if let Some(d) = self.flags.max_depth {
+                self.settings.max_depth = d;
+            }
             changed_settings = true;
         }
         let moved = self.controller.update(&mut self.rig, &input.nav);
@@ -361,7 +377,7 @@ impl ViewState {
     }
 
     fn request(&self) -> Request {
-        let p = &PRESETS[self.preset];
+        let (p, m) = (&PRESETS[self.preset], &MOTION[self.preset]);
         Request {
             generation: self.generation,
             rig: self.rig,
@@ -369,9 +385,10 @@ impl ViewState {
             moving: self.moving,
             frame_budget_s: self
                 .target_fps
-                .map_or_else(|| p.frame_budget_s(), |fps| 1.0 / fps.max(1.0)),
-            max_scale: p.max_scale,
-            max_spp: self.max_spp.unwrap_or(p.max_spp),
+                .map_or_else(|| m.frame_budget_s(), |fps| 1.0 / fps.max(1.0)),
+            max_scale: m.max_scale,
+            still_scale: 1.0 / p.resolution_scale,
+            max_spp: self.max_spp.unwrap_or(p.spp),
         }
     }
 }

@@ -1,64 +1,63 @@
-//! Quality presets the viewer switches between with F1-F4 or 1-4: plain
-//! settings for the frame budget while moving, the coarsest preview and the
-//! sample cap while still. No logic beyond picking one.
+//! The viewer's quality keys: F1-F4 or 1-4 pick lucent-render's four
+//! presets ([`PRESETS`]: samples, depth, integrator, shading, roulette and
+//! resolution scale come from there). The viewer adds only how a preset
+//! behaves while the camera moves ([`Motion`]: the frame rate aimed for and
+//! the coarsest preview), in a table kept in the same order. No logic
+//! beyond picking one.
 
-/// One quality preset.
+pub use lucent_render::quality::PRESETS;
+
+/// What a preset means to the viewer while the camera moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Preset {
-    /// Shown in the title and in `--stats`.
-    pub name: &'static str,
+pub struct Motion {
+    /// The name of the [`PRESETS`] entry this row belongs to.
+    pub preset: &'static str,
     /// Frames per second aimed for while the camera moves; the preview's
     /// resolution and samples are sized so a frame fits in `1 / target_fps`.
     pub target_fps: f32,
     /// Coarsest preview: at most this many window pixels per rendered pixel
     /// along each axis.
     pub max_scale: f32,
-    /// Samples per pixel accumulated at full resolution while still.
-    pub max_spp: u32,
-    /// Recursion depth cap (`None`: the scene's own).
-    pub max_depth: Option<u32>,
 }
 
-/// The presets, in key order (F1/1 first).
-pub const PRESETS: [Preset; 4] = [
-    Preset {
-        name: "draft",
+/// Motion parameters of each preset, in the order of [`PRESETS`] (the key
+/// order, F1/1 first).
+pub const MOTION: [Motion; PRESETS.len()] = [
+    Motion {
+        preset: "preview",
         target_fps: 60.0,
         max_scale: 8.0,
-        max_spp: 1,
-        max_depth: Some(1),
     },
-    Preset {
-        name: "interactive",
+    Motion {
+        preset: "interactive",
         target_fps: 40.0,
         max_scale: 6.0,
-        max_spp: 64,
-        max_depth: None,
     },
-    Preset {
-        name: "quality",
+    Motion {
+        preset: "final",
         target_fps: 20.0,
         max_scale: 4.0,
-        max_spp: 256,
-        max_depth: None,
     },
-    Preset {
-        name: "final",
+    Motion {
+        preset: "reference",
         target_fps: 8.0,
         max_scale: 2.0,
-        max_spp: 1024,
-        max_depth: None,
     },
 ];
 
 /// The preset the viewer starts with (index into [`PRESETS`]).
 pub const DEFAULT_PRESET: usize = 1;
 
-impl Preset {
+impl Motion {
     /// The time one frame may take while moving, seconds.
     pub fn frame_budget_s(&self) -> f32 {
         1.0 / self.target_fps.max(1.0)
     }
+}
+
+/// The index of the preset called `name` in [`PRESETS`] (and [`MOTION`]).
+pub fn index_of(name: &str) -> Option<usize> {
+    PRESETS.iter().position(|p| p.name == name)
 }
 
 #[cfg(test)]
@@ -66,13 +65,26 @@ mod tests {
     use super::*;
 
     #[test]
-    fn presets_trade_speed_for_quality_in_key_order() {
-        for pair in PRESETS.windows(2) {
-            assert!(pair[0].target_fps > pair[1].target_fps, "{pair:?}");
-            assert!(pair[0].max_spp < pair[1].max_spp, "{pair:?}");
-            assert!(pair[0].max_scale >= pair[1].max_scale, "{pair:?}");
+    fn motion_rows_follow_the_shared_presets() {
+        for (m, p) in MOTION.iter().zip(&PRESETS) {
+            assert_eq!(m.preset, p.name);
+            assert_eq!(index_of(p.name).map(|i| PRESETS[i].name), Some(p.name));
         }
-        assert!(PRESETS.iter().all(|p| p.max_scale >= 1.0 && p.frame_budget_s() > 0.0));
+        assert_eq!(index_of("draft"), None);
         assert_eq!(PRESETS[DEFAULT_PRESET].name, "interactive");
+    }
+
+    #[test]
+    fn presets_trade_speed_for_quality_in_key_order() {
+        for (pair, motion) in PRESETS.windows(2).zip(MOTION.windows(2)) {
+            assert!(motion[0].target_fps > motion[1].target_fps, "{motion:?}");
+            assert!(motion[0].max_scale >= motion[1].max_scale, "{motion:?}");
+            assert!(pair[0].spp < pair[1].spp, "{} {}", pair[0].name, pair[1].name);
+        }
+        assert!(MOTION.iter().all(|m| m.max_scale >= 1.0 && m.frame_budget_s() > 0.0));
+        // The coarsest preview is never finer than the still image.
+        for (m, p) in MOTION.iter().zip(&PRESETS) {
+            assert!(m.max_scale * p.resolution_scale >= 1.0, "{}", p.name);
+        }
     }
 }

@@ -82,22 +82,37 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     let t0 = Instant::now();
     let mut v = view(&ViewArgs::default(), t0);
     let g = v.request().generation;
-    assert_eq!(v.request().max_spp, PRESETS[DEFAULT_PRESET].max_spp);
+    let interactive = &PRESETS[DEFAULT_PRESET];
+    let r = v.request();
+    assert_eq!(r.max_spp, interactive.spp);
+    assert_eq!(
+        (r.settings.integrator, r.settings.shading, r.settings.max_depth),
+        (interactive.integrator, interactive.shading, interactive.max_depth)
+    );
     // Picking the preset already in use changes nothing.
     let same = FrameInput {
         preset: Some(DEFAULT_PRESET),
         ..FrameInput::default()
     };
     assert!(!v.apply(&same, t0));
-    let draft = FrameInput {
-        preset: Some(0),
+    let pick = |p: usize| FrameInput {
+        preset: Some(p),
         ..FrameInput::default()
     };
-    assert!(v.apply(&draft, t0));
+    // The preview preset: its samples, depth and shading, its resolution
+    // scale for the still image, the window's size unchanged.
+    let preview = &PRESETS[0];
+    assert!(v.apply(&pick(0), t0));
     let r = v.request();
     assert!(!r.moving && r.generation == g + 1);
-    assert_eq!((r.max_spp, r.settings.max_depth), (PRESETS[0].max_spp, 1));
-    assert!((r.frame_budget_s - 1.0 / PRESETS[0].target_fps).abs() < 1e-6);
+    assert_eq!((r.max_spp, r.settings.max_depth), (preview.spp, preview.max_depth));
+    assert_eq!(
+        (r.settings.shading, r.settings.min_weight),
+        (Shading::Gouraud, preview.min_weight)
+    );
+    assert_eq!((r.settings.width, r.settings.height), (640, 360));
+    assert!((r.still_scale * preview.resolution_scale - 1.0).abs() < 1e-6);
+    assert!((r.frame_budget_s - 1.0 / MOTION[0].target_fps).abs() < 1e-6);
     let shading = FrameInput {
         toggle_shading: true,
         ..FrameInput::default()
@@ -105,28 +120,40 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     assert!(v.apply(&shading, t0));
     assert_eq!(v.request().settings.shading, Shading::Phong);
     assert_eq!(v.request().generation, g + 2);
-    // Back to a preset without a depth cap: the scene's depth returns.
-    let quality = FrameInput {
-        preset: Some(2),
-        ..FrameInput::default()
-    };
-    assert!(v.apply(&quality, t0));
-    assert_eq!(v.request().settings.max_depth, 5);
-    // The integrator key switches to the path tracer and back; the draft
-    // preset's depth cap counts two more segments for the path tracer.
+    // The final preset path traces at full resolution.
+    let final_ = &PRESETS[2];
+    assert!(v.apply(&pick(2), t0));
+    let r = v.request();
+    assert_eq!(r.settings.integrator, Integrator::Path);
+    assert_eq!(
+        (r.settings.max_depth, r.settings.rr_depth),
+        (final_.max_depth, final_.rr_depth)
+    );
+    assert_eq!((r.still_scale, r.max_spp), (1.0, final_.spp));
+    // The integrator key switches to Whitted and back, keeping the chains
+    // the depth shows: a path depth d is a Whitted depth d - 2.
     let integrator = FrameInput {
         toggle_integrator: true,
         ..FrameInput::default()
     };
     assert!(v.apply(&integrator, t0));
-    assert_eq!(v.request().settings.integrator, Integrator::Path);
+    assert_eq!(
+        (v.request().settings.integrator, v.request().settings.max_depth),
+        (Integrator::Whitted, final_.max_depth - 2)
+    );
     assert_eq!(v.request().generation, g + 4);
-    assert!(v.apply(&draft, t0));
-    assert_eq!(v.request().settings.max_depth, 3);
     assert!(v.apply(&integrator, t0));
     assert_eq!(
         (v.request().settings.integrator, v.request().settings.max_depth),
-        (Integrator::Whitted, 1)
+        (Integrator::Path, final_.max_depth)
+    );
+    // A preset key undoes the switches: preview is Whitted and Gouraud again.
+    assert!(v.apply(&integrator, t0) && v.apply(&shading, t0));
+    assert!(v.apply(&pick(0), t0));
+    let r = v.request();
+    assert_eq!(
+        (r.settings.integrator, r.settings.shading, r.settings.max_depth),
+        (Integrator::Whitted, Shading::Gouraud, preview.max_depth)
     );
 }
 
@@ -135,7 +162,13 @@ fn flags_override_every_preset() {
     let args = ViewArgs {
         max_spp: Some(3),
         target_fps: Some(10.0),
-        preset: Some(4),
+        quality: QualityArgs {
+            preset: lucent_render::quality::preset("final"),
+            max_depth: Some(4),
+            integrator: Some(crate::IntegratorArg::Path),
+            rr_depth: Some(2),
+            ..QualityArgs::default()
+        },
         ..ViewArgs::default()
     };
     let t0 = Instant::now();
@@ -150,6 +183,21 @@ fn flags_override_every_preset() {
         let r = v.request();
         assert_eq!(r.max_spp, 3);
         assert!((r.frame_budget_s - 0.1).abs() < 1e-6);
-        assert_eq!(r.max_scale, preset.max_scale);
+        assert_eq!(r.max_scale, MOTION[p].max_scale);
+        assert!((r.still_scale * preset.resolution_scale - 1.0).abs() < 1e-6);
+        let s = r.settings;
+        assert_eq!((s.integrator, s.max_depth, s.rr_depth), (Integrator::Path, 4, 2));
+        // What no flag sets still follows the preset.
+        assert_eq!(s.shading, preset.shading);
     }
+    // The integrator key still switches, but the depth stays the flag's.
+    let integrator = FrameInput {
+        toggle_integrator: true,
+        ..FrameInput::default()
+    };
+    assert!(v.apply(&integrator, t0));
+    assert_eq!(
+        (v.request().settings.integrator, v.request().settings.max_depth),
+        (Integrator::Whitted, 4)
+    );
 }

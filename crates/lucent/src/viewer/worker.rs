@@ -6,7 +6,8 @@
 //! settings, whether the camera is moving) and picks up finished [`Frame`]s.
 //! While the camera moves, the worker renders previews sized to the frame
 //! budget from measured costs ([`CostModel`]); when it holds still, it
-//! refines one full-resolution film pass by pass up to the sample cap. A new
+//! refines one film at the preset's resolution pass by pass up to the
+//! sample cap. A new
 //! request generation cancels a refinement pass in flight and restarts
 //! accumulation; the camera coming to rest cancels a preview in flight (the
 //! full-resolution pass it delays is what the user waits for); a cancelled
@@ -35,6 +36,9 @@ pub struct Request {
     pub frame_budget_s: f32,
     /// Coarsest preview scale (window pixels per rendered pixel per axis).
     pub max_scale: f32,
+    /// Scale of the still image (window pixels per rendered pixel per
+    /// axis; 1 renders at window size).
+    pub still_scale: f32,
     /// Samples per pixel to accumulate while still.
     pub max_spp: u32,
 }
@@ -308,8 +312,7 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
 fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &AtomicBool) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (scale, spp) = costs.preview_shape(w, h, r.frame_budget_s, r.max_scale);
-    let pw = ((w as f32 / scale).round() as u32).clamp(1, w);
-    let ph = ((h as f32 / scale).round() as u32).clamp(1, h);
+    let (pw, ph) = scaled_size(w, h, scale);
     let mut film = Film::new(pw, ph);
     let start = Instant::now();
     render_samples_cancellable(scene, &r.settings, &mut film, 0..spp, cancel)?;
@@ -329,8 +332,8 @@ fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &Ato
     })
 }
 
-/// One more full-resolution pass of the still camera, or `None` when a new
-/// request cancelled it (the film is then dropped).
+/// One more pass of the still camera at the request's still scale, or
+/// `None` when a new request cancelled it (the film is then dropped).
 fn refine(
     scene: &RenderScene,
     r: &Request,
@@ -339,13 +342,14 @@ fn refine(
     cancel: &AtomicBool,
 ) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
+    let (rw, rh) = scaled_size(w, h, r.still_scale);
     let (_, f) = match film.take() {
-        Some((g, f)) if g == r.generation && (f.width(), f.height()) == (w, h) => film.insert((g, f)),
-        _ => film.insert((r.generation, Film::new(w, h))),
+        Some((g, f)) if g == r.generation && (f.width(), f.height()) == (rw, rh) => film.insert((g, f)),
+        _ => film.insert((r.generation, Film::new(rw, rh))),
     };
     let n = f.n_samples();
     let k = costs
-        .refine_samples(w, h, r.frame_budget_s)
+        .refine_samples(rw, rh, r.frame_budget_s)
         .min(r.max_spp.max(1).saturating_sub(n))
         .max(1);
     let start = Instant::now();
@@ -354,19 +358,28 @@ fn refine(
         return None;
     }
     let render_s = start.elapsed().as_secs_f32();
-    costs.observe_trace(u64::from(w) * u64::from(h) * u64::from(k), render_s);
+    costs.observe_trace(u64::from(rw) * u64::from(rh) * u64::from(k), render_s);
     let (pixels, output_s) = output(f, w, h, costs);
     Some(Frame {
         generation: r.generation,
         rig: r.rig,
         pixels,
-        width: w,
-        height: h,
+        width: rw,
+        height: rh,
         samples: f.n_samples(),
         refined: true,
         render_s,
         output_s,
     })
+}
+
+/// A `width` x `height` window rendered at `scale` window pixels per
+/// rendered pixel: the rendered size (at least 1, at most the window).
+fn scaled_size(width: u32, height: u32, scale: f32) -> (u32, u32) {
+    let scale = if scale.is_finite() { scale.max(1.0) } else { 1.0 };
+    let w = ((width as f32 / scale).round() as u32).clamp(1, width.max(1));
+    let h = ((height as f32 / scale).round() as u32).clamp(1, height.max(1));
+    (w, h)
 }
 
 /// Converts a film to window pixels (nearest film pixel); returns them and

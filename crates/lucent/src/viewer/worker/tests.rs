@@ -39,6 +39,7 @@ fn request(generation: u64, moving: bool, max_spp: u32) -> Request {
         moving,
         frame_budget_s: 0.02,
         max_scale: 4.0,
+        still_scale: 1.0,
         max_spp,
     }
 }
@@ -95,6 +96,22 @@ fn still_camera_refines_to_the_cap_then_idles() {
         worker.latest_frame(Duration::from_millis(200)).is_none(),
         "idle at the cap"
     );
+}
+
+#[test]
+fn still_scale_refines_a_smaller_film_upscaled_to_the_window() {
+    let mut r = request(1, false, 2);
+    r.still_scale = 2.0;
+    let worker = Worker::spawn(scene(), r).unwrap();
+    let f = worker.latest_frame(WAIT).expect("a refinement frame");
+    assert!(f.refined && (f.width, f.height) == (32, 18) && f.pixels.len() == 64 * 36);
+    assert_eq!(f.scale(64), 2.0);
+    // Odd sizes round to the nearest pixel; a nonsense scale renders at
+    // window size, and no scale gives less than one pixel.
+    assert_eq!(scaled_size(65, 37, 2.0), (33, 19));
+    assert_eq!(scaled_size(64, 36, f32::NAN), (64, 36));
+    assert_eq!(scaled_size(64, 36, 0.25), (64, 36));
+    assert_eq!(scaled_size(64, 36, 1e9), (1, 1));
 }
 
 #[test]

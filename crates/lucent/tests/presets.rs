@@ -1,0 +1,93 @@
+//! End-to-end tests of `--preset` on the `lucent` binary: the preset's
+//! size and settings reach the render, explicit flags win, and an unknown
+//! name is a usage error that lists the presets.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn lucent() -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
+    cmd.current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("../.."));
+    cmd
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("presets").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Renders the seed scene with `args`; returns the summary line and the
+/// PNG's size.
+fn render(name: &str, args: &[&str]) -> (String, (u32, u32)) {
+    let png = scratch(name).join("x.png");
+    let out: Output = lucent()
+        .args(["render", "res/scenes/seed.toml", "--threads", "2", "-o"])
+        .arg(&png)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let tex = lucent_assets::texture_from_bytes(&std::fs::read(&png).unwrap(), &png).unwrap();
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        (tex.width(), tex.height()),
+    )
+}
+
+#[test]
+fn preview_renders_the_scene_at_half_size_with_gouraud_whitted() {
+    // seed.toml is 640x360 at 4 spp; preview halves the size, one sample.
+    let (summary, size) = render("preview", &["--preset", "preview"]);
+    assert_eq!(size, (320, 180));
+    assert!(summary.contains("320x180, 1 spp, whitted gouraud"), "{summary}");
+}
+
+#[test]
+fn explicit_flags_win_over_the_preset() {
+    let (summary, size) = render(
+        "final",
+        &["--preset", "final", "--size", "48x27", "--spp", "2", "--max-depth", "3"],
+    );
+    assert_eq!(size, (48, 27));
+    assert!(summary.contains("48x27, 2 spp, path max_depth 3"), "{summary}");
+    // Without the flags the final preset path traces with its own depth.
+    let (summary, _) = render("final-depth", &["--preset", "final", "--size", "16x9", "--spp", "1"]);
+    let depth = lucent_render::quality::preset("final").unwrap().max_depth;
+    assert!(summary.contains(&format!("path max_depth {depth}")), "{summary}");
+}
+
+#[test]
+fn an_unknown_preset_is_a_usage_error_listing_the_presets() {
+    for cmd in [
+        &["render", "res/scenes/seed.toml", "-o", "x.png"][..],
+        &["bench", "render"],
+        &["view"],
+    ] {
+        let out = lucent().args(cmd).args(["--preset", "ultra"]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd:?}: {err}");
+        assert!(
+            err.contains("'ultra' is not a preset; the presets are preview, interactive, final, reference"),
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+#[test]
+fn help_names_the_presets() {
+    for cmd in [
+        &["render", "--help"][..],
+        &["bench", "render", "--help"],
+        &["view", "--help"],
+    ] {
+        let out = lucent().args(cmd).output().unwrap();
+        let help = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{cmd:?}");
+        for name in ["--preset", "preview", "interactive", "final", "reference"] {
+            assert!(help.contains(name), "{cmd:?} lacks {name}: {help}");
+        }
+    }
+}
