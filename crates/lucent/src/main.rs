@@ -51,10 +51,8 @@ enum Command {
 #[derive(Args, Clone, Debug, Default)]
 struct QualityArgs {
     /// Quality preset: preview, interactive, final or reference (cheapest
-    /// first; see the README's table). It sets the resolution scale,
-    /// samples, integrator, shading, depth, roulette and BVH build effort;
-    /// explicit flags (--size, --spp, --max-depth, ...) override it.
-    #[arg(long, value_name = "NAME", value_parser = parse_preset)]
+    /// first); explicit flags override it.
+    #[arg(long, value_name = "NAME", value_parser = parse_preset, long_help = preset_help())]
     preset: Option<&'static QualityPreset>,
     /// Image size, WIDTHxHEIGHT (1 to 16384 each).
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
@@ -139,6 +137,19 @@ impl QualityArgs {
             };
         }
     }
+}
+
+/// `--help` for `--preset`: every preset with its one-line description.
+fn preset_help() -> String {
+    let mut help = String::from(
+        "Quality preset, cheapest first. It sets the resolution scale (of the scene's size), samples, \
+integrator, shading, depth, roulette and BVH build effort; explicit flags (--size, --spp, --max-depth, ...) \
+override it.",
+    );
+    for p in &quality::PRESETS {
+        help.push_str(&format!("\n  {:<12} {}", p.name, p.description));
+    }
+    help
 }
 
 fn parse_preset(s: &str) -> Result<&'static QualityPreset, String> {

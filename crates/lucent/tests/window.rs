@@ -256,7 +256,7 @@ fn arrow_drag_and_wheel_move_the_camera_as_commanded() {
     assert_eq!((start.width, start.height), (320, 180));
     // The title reports rate, samples, scale, preset and shading.
     let title = xdotool(&["getwindowname", &window]);
-    for part in [" fps, ", " ms | 2 spp | scale 1/1.00 | interactive | phong"] {
+    for part in [" fps, ", " ms | 2 spp | scale 1/1.00 | scene | gouraud"] {
         assert!(title.contains(part), "title: {title}");
     }
     let before = grab(&window, &dir.join("before.png"));

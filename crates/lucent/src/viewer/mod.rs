@@ -24,7 +24,7 @@ use lucent_render::{RenderSettings, extract_with};
 use lucent_scene::components::OrbitRig;
 use lucent_scene::{Integrator, Shading};
 use minifb::{Window, WindowOptions};
-use quality::{DEFAULT_PRESET, MOTION, PRESETS};
+use quality::{MOTION, PRESETS, SCENE};
 use stats::{FrameClock, FrameReport};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -38,7 +38,7 @@ pub const CONTROLS: &str = "Controls:
   middle/right drag   pan, the scene following the pointer
   mouse wheel         zoom in and out
   R                   reset the view
-  F1-F4 or 1-4        quality preset: preview, interactive (the default), final, reference
+  F1-F4 or 1-4        quality preset: preview, interactive, final, reference
   G                   switch Gouraud / per-pixel Phong shading
   I                   switch integrator: the report's Whitted model / path tracing
   P                   save a screenshot (lucent-<unix ms>.png in the current directory)
@@ -46,13 +46,14 @@ pub const CONTROLS: &str = "Controls:
 
 The title shows frames per second, frame time, samples accumulated,
 resolution scale (window pixels per rendered pixel), preset and shading.
-The presets are the ones `lucent render --preset` takes (samples, depth,
-integrator, shading, resolution scale); G and I switch shading and
-integrator until the next preset key, and explicit flags (--max-depth,
---integrator, ...) override every preset. While the camera moves, frames
-are rendered at the resolution that fits the preset's frame budget; when it
-stops, the image refines at the preset's resolution until its samples per
-pixel (or --max-spp).";
+The viewer starts on the scene's own [render] settings (preset: scene),
+or on --preset NAME; the keys pick the presets `lucent render --preset`
+takes (samples, depth, integrator, shading, resolution scale). G and I
+switch shading and integrator until the next preset key; explicit flags
+(--max-depth, --integrator, ...) override every preset. While the camera
+moves, frames are rendered at the resolution that fits the preset's frame
+budget; when it stops, the image refines at the preset's resolution up to
+its samples per pixel (or --max-spp).";
 
 /// Arguments of `lucent view`.
 #[derive(Args, Debug, Default)]
@@ -67,7 +68,9 @@ pub struct ViewArgs {
     /// Frames per second to aim for while moving (overrides every preset's).
     #[arg(long, value_name = "FPS", value_parser = parse_fps)]
     target_fps: Option<f32>,
-    /// Quit after this many displayed frames (for scripted runs and tests).
+    /// Quit after this many displayed frames, or once the image is finished
+    /// (refined to its samples per pixel) if that comes first (for
+    /// scripted runs and tests).
     #[arg(long, value_name = "N")]
     frames: Option<u64>,
     /// Save the last displayed frame to this PNG file on exit.
@@ -122,7 +125,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     // scale applies to the still image inside it, so only the flags here.
     args.quality.apply_flags(&mut scene.settings);
     // The BVH is built once, with the starting preset's build effort.
-    let rs = extract_with(&scene, &PRESETS[start_preset(&args)].extract_options()).with_context(|| name.clone())?;
+    let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
     let (w, h) = (scene.settings.width, scene.settings.height);
     let mut window = Window::new(
         &format!("Lucent - {name}"),
@@ -234,8 +237,11 @@ impl App {
                     let _ = writeln!(std::io::stdout(), "{}", report.json());
                 }
                 self.title = Some(self.shown.title(&self.name, &frame, &self.view));
+                // A finished image gets no more frames until the next input,
+                // so a frame count must not wait for them.
+                let finished = self.view.is_finished(&frame);
                 self.shown.pixels = frame.pixels;
-                go_on = self.max_frames.is_none_or(|n| self.shown.count < n);
+                go_on = self.max_frames.is_none_or(|n| self.shown.count < n && !finished);
             }
             _ => self.window.update(),
         }
@@ -270,12 +276,9 @@ impl Source {
     }
 }
 
-/// The preset named by `--preset`, or the default one.
-fn start_preset(args: &ViewArgs) -> usize {
-    args.quality
-        .preset
-        .and_then(|p| quality::index_of(p.name))
-        .unwrap_or(DEFAULT_PRESET)
+/// The index of the preset named by `--preset`, if any.
+fn start_preset(args: &ViewArgs) -> Option<usize> {
+    args.quality.preset.and_then(|p| quality::index_of(p.name))
 }
 
 /// The camera and settings the user has chosen, and whether they are
@@ -287,7 +290,8 @@ struct ViewState {
     settings: RenderSettings,
     /// Explicit command-line settings, applied over every preset.
     flags: QualityArgs,
-    preset: usize,
+    /// Index into [`PRESETS`]; `None`: the scene's own settings.
+    preset: Option<usize>,
     max_spp: Option<u32>,
     target_fps: Option<f32>,
     generation: u64,
@@ -312,15 +316,18 @@ impl ViewState {
             was_holding: false,
             last_change: now,
         };
-        view.apply_preset();
+        if let Some(p) = view.preset {
+            view.apply_preset(p);
+        }
         view
     }
 
     /// Takes the preset's samples, depth, integrator, shading and
     /// roulette (the window keeps its size), then the explicit flags.
-    fn apply_preset(&mut self) {
+    fn apply_preset(&mut self, preset: usize) {
+        self.preset = Some(preset);
         let (width, height) = (self.settings.width, self.settings.height);
-        PRESETS[self.preset].apply(&mut self.settings);
+        PRESETS[preset].apply(&mut self.settings);
         (self.settings.width, self.settings.height) = (width, height);
         self.flags.apply_flags(&mut self.settings);
     }
@@ -328,9 +335,8 @@ impl ViewState {
     /// Applies one frame of input; returns whether the request changed.
     fn apply(&mut self, input: &FrameInput, now: Instant) -> bool {
         let mut changed_settings = false;
-        if let Some(p) = input.preset.filter(|&p| p < PRESETS.len() && p != self.preset) {
-            self.preset = p;
-            self.apply_preset();
+        if let Some(p) = input.preset.filter(|&p| p < PRESETS.len() && Some(p) != self.preset) {
+            self.apply_preset(p);
             changed_settings = true;
         }
         if input.toggle_shading {
@@ -377,7 +383,8 @@ impl ViewState {
     }
 
     fn request(&self) -> Request {
-        let (p, m) = (&PRESETS[self.preset], &MOTION[self.preset]);
+        let m = self.preset.map_or(&SCENE, |p| &MOTION[p]);
+        let resolution_scale = self.preset.map_or(1.0, |p| PRESETS[p].resolution_scale);
         Request {
             generation: self.generation,
             rig: self.rig,
@@ -387,9 +394,23 @@ impl ViewState {
                 .target_fps
                 .map_or_else(|| m.frame_budget_s(), |fps| 1.0 / fps.max(1.0)),
             max_scale: m.max_scale,
-            still_scale: 1.0 / p.resolution_scale,
-            max_spp: self.max_spp.unwrap_or(p.spp),
+            still_scale: 1.0 / resolution_scale,
+            // The preset's samples, or the scene's without one.
+            max_spp: self.max_spp.unwrap_or(self.settings.spp),
         }
+    }
+
+    /// Whether `frame` is the finished image of the current request: the
+    /// still camera refined to its samples per pixel (the worker then
+    /// idles until something changes).
+    fn is_finished(&self, frame: &worker::Frame) -> bool {
+        let r = self.request();
+        frame.refined && !r.moving && frame.generation == r.generation && frame.samples >= r.max_spp.max(1)
+    }
+
+    /// The preset's name, or `scene` before one is picked.
+    fn preset_name(&self) -> &'static str {
+        self.preset.map_or(SCENE.preset, |p| PRESETS[p].name)
     }
 }
 
@@ -432,7 +453,7 @@ impl Shown {
             window_width: self.width,
             moving: view.moving,
             since_change_s: now.duration_since(view.last_change).as_secs_f32(),
-            preset: PRESETS[view.preset].name,
+            preset: view.preset_name(),
             shading: view.settings.shading.name(),
         }
     }
@@ -444,7 +465,7 @@ impl Shown {
             self.clock.frame_ms(),
             frame.samples,
             frame.scale(self.width),
-            PRESETS[view.preset].name,
+            view.preset_name(),
             match view.settings.integrator {
                 Integrator::Whitted => view.settings.shading.name(),
                 Integrator::Path => "path",

@@ -2,8 +2,9 @@
 //! presets ([`PRESETS`]: samples, depth, integrator, shading, roulette and
 //! resolution scale come from there). The viewer adds only how a preset
 //! behaves while the camera moves ([`Motion`]: the frame rate aimed for and
-//! the coarsest preview), in a table kept in the same order. No logic
-//! beyond picking one.
+//! the coarsest preview), in a table kept in the same order. Until a preset
+//! is picked the viewer shows the scene's own `[render]` settings, moving
+//! as [`SCENE`] says. No logic beyond picking one.
 
 pub use lucent_render::quality::PRESETS;
 
@@ -45,8 +46,13 @@ pub const MOTION: [Motion; PRESETS.len()] = [
     },
 ];
 
-/// The preset the viewer starts with (index into [`PRESETS`]).
-pub const DEFAULT_PRESET: usize = 1;
+/// How the viewer moves before a preset is picked, on the scene's own
+/// settings (named `scene` in the title and `--stats`).
+pub const SCENE: Motion = Motion {
+    preset: "scene",
+    target_fps: 40.0,
+    max_scale: 6.0,
+};
 
 impl Motion {
     /// The time one frame may take while moving, seconds.
@@ -71,7 +77,7 @@ mod tests {
             assert_eq!(index_of(p.name).map(|i| PRESETS[i].name), Some(p.name));
         }
         assert_eq!(index_of("draft"), None);
-        assert_eq!(PRESETS[DEFAULT_PRESET].name, "interactive");
+        assert_eq!(index_of(SCENE.preset), None, "the scene's settings are not a preset");
     }
 
     #[test]
@@ -81,7 +87,12 @@ mod tests {
             assert!(motion[0].max_scale >= motion[1].max_scale, "{motion:?}");
             assert!(pair[0].spp < pair[1].spp, "{} {}", pair[0].name, pair[1].name);
         }
-        assert!(MOTION.iter().all(|m| m.max_scale >= 1.0 && m.frame_budget_s() > 0.0));
+        assert!(
+            MOTION
+                .iter()
+                .chain([&SCENE])
+                .all(|m| m.max_scale >= 1.0 && m.frame_budget_s() > 0.0)
+        );
         // The coarsest preview is never finer than the still image.
         for (m, p) in MOTION.iter().zip(&PRESETS) {
             assert!(m.max_scale * p.resolution_scale >= 1.0, "{}", p.name);

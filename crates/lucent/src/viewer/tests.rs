@@ -82,29 +82,33 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     let t0 = Instant::now();
     let mut v = view(&ViewArgs::default(), t0);
     let g = v.request().generation;
-    let interactive = &PRESETS[DEFAULT_PRESET];
+    // Before a preset is picked: the scene's own settings, at window size.
     let r = v.request();
-    assert_eq!(r.max_spp, interactive.spp);
-    assert_eq!(
-        (r.settings.integrator, r.settings.shading, r.settings.max_depth),
-        (interactive.integrator, interactive.shading, interactive.max_depth)
-    );
-    // Picking the preset already in use changes nothing.
-    let same = FrameInput {
-        preset: Some(DEFAULT_PRESET),
-        ..FrameInput::default()
-    };
-    assert!(!v.apply(&same, t0));
+    assert_eq!(r.settings, view(&ViewArgs::default(), t0).settings);
+    assert_eq!((r.max_spp, r.still_scale, r.settings.max_depth), (1, 1.0, 5));
+    assert!((r.frame_budget_s - 1.0 / SCENE.target_fps).abs() < 1e-6);
+    assert_eq!(v.preset_name(), "scene");
     let pick = |p: usize| FrameInput {
         preset: Some(p),
         ..FrameInput::default()
     };
+    let interactive = &PRESETS[1];
+    assert!(v.apply(&pick(1), t0));
+    let r = v.request();
+    assert_eq!((r.generation, r.max_spp), (g + 1, interactive.spp));
+    assert_eq!(
+        (r.settings.integrator, r.settings.max_depth, r.settings.rr_depth),
+        (interactive.integrator, interactive.max_depth, interactive.rr_depth)
+    );
+    assert_eq!(v.preset_name(), "interactive");
+    // Picking the preset already in use changes nothing.
+    assert!(!v.apply(&pick(1), t0));
     // The preview preset: its samples, depth and shading, its resolution
     // scale for the still image, the window's size unchanged.
     let preview = &PRESETS[0];
     assert!(v.apply(&pick(0), t0));
     let r = v.request();
-    assert!(!r.moving && r.generation == g + 1);
+    assert!(!r.moving && r.generation == g + 2);
     assert_eq!((r.max_spp, r.settings.max_depth), (preview.spp, preview.max_depth));
     assert_eq!(
         (r.settings.shading, r.settings.min_weight),
@@ -119,7 +123,7 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     };
     assert!(v.apply(&shading, t0));
     assert_eq!(v.request().settings.shading, Shading::Phong);
-    assert_eq!(v.request().generation, g + 2);
+    assert_eq!(v.request().generation, g + 3);
     // The final preset path traces at full resolution.
     let final_ = &PRESETS[2];
     assert!(v.apply(&pick(2), t0));
@@ -141,7 +145,7 @@ fn presets_and_shading_restart_accumulation_without_moving() {
         (v.request().settings.integrator, v.request().settings.max_depth),
         (Integrator::Whitted, final_.max_depth - 2)
     );
-    assert_eq!(v.request().generation, g + 4);
+    assert_eq!(v.request().generation, g + 5);
     assert!(v.apply(&integrator, t0));
     assert_eq!(
         (v.request().settings.integrator, v.request().settings.max_depth),
@@ -173,7 +177,7 @@ fn flags_override_every_preset() {
     };
     let t0 = Instant::now();
     let mut v = view(&args, t0);
-    assert_eq!(PRESETS[v.preset].name, "final");
+    assert_eq!(v.preset_name(), "final");
     for (p, preset) in PRESETS.iter().enumerate() {
         let pick = FrameInput {
             preset: Some(p),
@@ -200,4 +204,34 @@ fn flags_override_every_preset() {
         (v.request().settings.integrator, v.request().settings.max_depth),
         (Integrator::Whitted, 4)
     );
+}
+
+#[test]
+fn a_frame_refined_to_the_cap_of_the_current_request_is_finished() {
+    let t0 = Instant::now();
+    let args = ViewArgs {
+        max_spp: Some(4),
+        ..ViewArgs::default()
+    };
+    let mut v = view(&args, t0);
+    let r = v.request();
+    let frame = |generation, samples, refined| worker::Frame {
+        generation,
+        rig: r.rig,
+        pixels: Vec::new(),
+        width: 1,
+        height: 1,
+        samples,
+        refined,
+        render_s: 0.0,
+        output_s: 0.0,
+    };
+    assert!(v.is_finished(&frame(r.generation, 4, true)));
+    assert!(!v.is_finished(&frame(r.generation, 3, true)), "below the cap");
+    assert!(!v.is_finished(&frame(r.generation, 4, false)), "a preview");
+    assert!(!v.is_finished(&frame(r.generation - 1, 4, true)), "an older request");
+    // While the camera moves nothing is finished.
+    assert!(v.apply(&drag(5.0), t0));
+    let g = v.request().generation;
+    assert!(!v.is_finished(&frame(g, 4, true)));
 }
