@@ -9,13 +9,16 @@
 //! - `view-bench`, `soak`: drive the viewer under Xvfb (see `viewer.rs`);
 //! - `extremes [FILTER]`: the extremes suite at full size (see `extremes.rs`);
 //! - `fuzz [TARGET...] [--runs N] [--time S]`: build and run the fuzz
-//!   targets in `fuzz/` (see `fuzz.rs`).
+//!   targets in `fuzz/` (see `fuzz.rs`);
+//! - `tradeoff [SCENE...]`: speed against accuracy of the quality presets
+//!   (see `tradeoff.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod extremes;
 mod fuzz;
 mod tidy;
+mod tradeoff;
 mod viewer;
 
 use std::path::{Path, PathBuf};
@@ -45,7 +48,15 @@ commands:
                            by default) with cargo-fuzz and run each in turn until
                            N executions (default 10000000) or S seconds (3600);
                            crashes are kept in fuzz/artifacts and fuzzing goes on;
-                           figures in fuzz/logs/summary.tsv. Not part of CI";
+                           figures in fuzz/logs/summary.tsv. Not part of CI
+  tradeoff [SCENE...] [--runs N] [--ref-spp N] [--threads N] [--check] [--reference-only]
+                           time every quality preset (median of N runs, default 3) and
+                           measure its error (RMSE, PSNR, FLIP) against a converged
+                           path-traced reference (cached in target/tradeoff/cache);
+                           default scenes res/scenes/seed.toml and cornell-mitsuba.toml;
+                           writes target/tradeoff/report.md and PNGs; --check fails
+                           unless every slower preset has a lower RMSE;
+                           --reference-only renders (or finds) the references only";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -58,6 +69,7 @@ fn main() -> ExitCode {
         Some("soak") => viewer::soak(&args[1..]),
         Some("extremes") => extremes::run_full(&args[1..]),
         Some("fuzz") => fuzz::fuzz(&args[1..]),
+        Some("tradeoff") => tradeoff::tradeoff(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

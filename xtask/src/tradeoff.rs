@@ -1,0 +1,550 @@
+//! `cargo xtask tradeoff [SCENE...]`: speed against accuracy of the quality
+//! presets, measured.
+//!
+//! For each scene (default: the seed scene and the Mitsuba Cornell box) a
+//! converged path-traced reference is rendered once and cached (see
+//! `reference.rs` for the cache key); then every preset is rendered
+//! `--runs` times, the presets taking turns so that a change of machine load
+//! hits them alike. Each preset gets the median wall time of extract (its
+//! BVH build quality is part of the preset) plus render, and its error
+//! against the reference: RMSE, relative RMSE and PSNR from
+//! `lucent_render::metrics`, and mean LDR-FLIP (nv-flip). A preset rendered
+//! at a fraction of the scene's size is upsampled bilinearly to the
+//! reference's size first (`imaging::upsample`).
+//!
+//! Writes, under `target/tradeoff/`: `report.md` (a table per scene,
+//! machine, date, commit, command), `results.tsv`, `tradeoff.png` (error
+//! against time, log-log), `STEM-contact.png` (every preset's image beside
+//! the reference, labelled) and each preset's image as rendered. The report
+//! says whether each scene's curve is monotone (every slower preset has a
+//! lower RMSE); `--check` makes a non-monotone curve an error.
+//!
+//! Timings need an optimised build: run from a debug build (as `cargo
+//! xtask` is), this command re-runs itself with `cargo run --release`.
+
+mod imaging;
+mod plot;
+mod reference;
+mod report;
+
+use imaging::{Image, flip_mean, upsample};
+use lucent_render::quality::{PRESETS, QualityPreset};
+use lucent_render::{Integrator, RenderSettings, current_threads, extract_with, metrics, render, with_threads};
+use reference::{RefSettings, Reference};
+use report::{PresetResult, ReferenceSummary, RunInfo, SceneResult, Timing};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// Scenes measured when none are named.
+const DEFAULT_SCENES: [&str; 2] = ["res/scenes/seed.toml", "res/scenes/cornell-mitsuba.toml"];
+/// Runs per preset unless `--runs` says otherwise.
+const DEFAULT_RUNS: usize = 3;
+/// The reference is rendered as this many batches (their spread gives its
+/// noise).
+const REF_CHUNKS: u32 = 16;
+/// Reference samples per pixel: at least this many, and at least
+/// [`REF_SPP_FACTOR`] times the costliest preset's, so that its noise is at
+/// most a quarter of that preset's (noise falls as 1/sqrt(spp)).
+const REF_MIN_SPP: u32 = 4096;
+/// See [`REF_MIN_SPP`].
+const REF_SPP_FACTOR: u32 = 16;
+/// The reference's path length limit: deep enough that longer paths add
+/// nothing visible; roulette keeps long paths rare and cheap.
+const REF_MAX_DEPTH: u32 = 32;
+/// The reference's roulette start (the renderer's default).
+const REF_RR_DEPTH: u32 = 5;
+
+const USAGE: &str =
+    "usage: cargo xtask tradeoff [SCENE...] [--runs N] [--ref-spp N] [--threads N] [--check] [--reference-only]";
+
+struct Opts {
+    scenes: Vec<PathBuf>,
+    runs: usize,
+    ref_spp: Option<u32>,
+    threads: usize,
+    check: bool,
+    reference_only: bool,
+}
+
+fn parse(args: &[String]) -> Result<Opts, String> {
+    let mut opts = Opts {
+        scenes: Vec::new(),
+        runs: DEFAULT_RUNS,
+        ref_spp: None,
+        threads: 0,
+        check: false,
+        reference_only: false,
+    };
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut number = |name: &str| -> Result<u32, String> {
+            it.next()
+                .and_then(|v| v.parse::<u32>().ok())
+                .filter(|v| *v > 0)
+                .ok_or_else(|| format!("{name} needs a positive whole number\n{USAGE}"))
+        };
+        match a.as_str() {
+            "--runs" => opts.runs = number("--runs")? as usize,
+            "--ref-spp" => opts.ref_spp = Some(number("--ref-spp")?),
+            "--threads" => opts.threads = number("--threads")? as usize,
+            "--check" => opts.check = true,
+            "--reference-only" => opts.reference_only = true,
+            "-h" | "--help" => return Err(USAGE.to_owned()),
+            s if s.starts_with('-') => return Err(format!("unknown option '{s}'\n{USAGE}")),
+            s => opts.scenes.push(PathBuf::from(s)),
+        }
+    }
+    if opts.scenes.is_empty() {
+        opts.scenes = DEFAULT_SCENES.iter().map(|s| crate::root().join(s)).collect();
+    }
+    Ok(opts)
+}
+
+/// Runs the command (see the module docs).
+pub fn tradeoff(args: &[String]) -> Result<(), String> {
+    if cfg!(debug_assertions) {
+        // Time the optimised renderer, not a debug build of this crate.
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+        let manifest = crate::root().join("Cargo.toml");
+        let mut cmd = Command::new(cargo);
+        cmd.args(["run", "--release", "--quiet", "-p", "xtask", "--manifest-path"])
+            .arg(&manifest)
+            .args(["--", "tradeoff"])
+            .args(args);
+        return crate::run(&mut cmd);
+    }
+    let opts = parse(args)?;
+    let out_dir = crate::root().join("target/tradeoff");
+    std::fs::create_dir_all(out_dir.join("images")).map_err(|e| format!("{}: {e}", out_dir.display()))?;
+    let mut info = RunInfo {
+        date: utc_now(),
+        commit: git_commit(),
+        cpu: cpu_model(),
+        cores: std::thread::available_parallelism().map_or(1, usize::from),
+        command: format!("cargo xtask tradeoff {}", args.join(" ")).trim_end().to_owned(),
+        runs: opts.runs,
+        ..RunInfo::default()
+    };
+    let (scenes, threads, loads) = with_threads(opts.threads, || -> Result<_, String> {
+        let mut results = Vec::new();
+        let mut loads = Vec::new();
+        if opts.reference_only {
+            for scene in &opts.scenes {
+                reference_of(scene, &opts, &out_dir.join("cache"))?;
+            }
+            return Ok((results, current_threads(), loads));
+        }
+        for scene in &opts.scenes {
+            loads.push(load_average());
+            results.push(measure_scene(scene, &opts, &out_dir)?);
+            loads.push(load_average());
+        }
+        Ok((results, current_threads(), loads))
+    })
+    .map_err(|e| e.to_string())??;
+    if opts.reference_only {
+        return Ok(());
+    }
+    info.threads = threads;
+    info.load_before = loads.first().cloned().unwrap_or_default();
+    info.load_after = loads.last().cloned().unwrap_or_default();
+
+    plot::error_vs_time(&scenes, &out_dir.join("tradeoff.png"))?;
+    let md = report::markdown(&info, &scenes, "tradeoff.png");
+    let write = |name: &str, text: &str| {
+        let p = out_dir.join(name);
+        std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))
+    };
+    write("report.md", &md)?;
+    write("results.tsv", &report::tsv(&scenes))?;
+    println!("\n{md}");
+    println!("wrote {}", out_dir.join("report.md").display());
+    let bad: Vec<&str> = scenes
+        .iter()
+        .filter(|s| !s.rmse_violations().is_empty())
+        .map(|s| s.stem.as_str())
+        .collect();
+    if opts.check && !bad.is_empty() {
+        return Err(format!(
+            "the presets' RMSE is not monotone in time on: {}",
+            bad.join(", ")
+        ));
+    }
+    Ok(())
+}
+
+/// The path as the report shows it: relative to the workspace when inside.
+fn shown(path: &Path) -> String {
+    let root = crate::root();
+    let abs = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_owned());
+    let root = std::fs::canonicalize(&root).unwrap_or(root);
+    abs.strip_prefix(&root).unwrap_or(path).display().to_string()
+}
+
+/// A loaded scene, its file stem and its reference.
+fn reference_of(
+    path: &Path,
+    opts: &Opts,
+    cache: &Path,
+) -> Result<(lucent_scene::Scene, String, RefSettings, Reference), String> {
+    let stem = path
+        .file_stem()
+        .map_or_else(|| "scene".to_owned(), |s| s.to_string_lossy().into_owned());
+    println!("== {} ==", shown(path));
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let (scene, load_report) = lucent_assets::load_scene(path).map_err(|e| e.to_string())?;
+    for w in &load_report.warnings {
+        eprintln!("warning: {w}");
+    }
+    let max_spp = PRESETS.iter().map(|p| p.spp).max().unwrap_or(1);
+    let spp = opts.ref_spp.unwrap_or(REF_MIN_SPP.max(REF_SPP_FACTOR * max_spp));
+    let ref_settings = RefSettings {
+        width: scene.settings.width,
+        height: scene.settings.height,
+        spp: spp.div_ceil(REF_CHUNKS) * REF_CHUNKS,
+        chunks: REF_CHUNKS,
+        max_depth: REF_MAX_DEPTH,
+        rr_depth: REF_RR_DEPTH,
+    };
+    let reference = get_reference(path, &stem, &bytes, &scene, &ref_settings, cache)?;
+    Ok((scene, stem, ref_settings, reference))
+}
+
+fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult, String> {
+    let (scene, stem, ref_settings, reference) = reference_of(path, opts, &out_dir.join("cache"))?;
+    let base = scene.settings;
+
+    // Presets take turns: run 1 of each, then run 2 of each, ...
+    let mut timings: Vec<Vec<Timing>> = vec![Vec::new(); PRESETS.len()];
+    let mut images: Vec<Option<Image>> = vec![None; PRESETS.len()];
+    for run in 0..opts.runs {
+        for (i, preset) in PRESETS.iter().enumerate() {
+            let (timing, image) = time_preset(&scene, &base, preset)?;
+            println!(
+                "  run {}/{} {:<12} extract {:.3} s + render {:.3} s",
+                run + 1,
+                opts.runs,
+                preset.name,
+                timing.extract_s,
+                timing.render_s
+            );
+            timings[i].push(timing);
+            images[i].get_or_insert(image);
+        }
+    }
+
+    let mut presets = Vec::new();
+    let mut upsampled = Vec::new();
+    for ((preset, runs), image) in PRESETS.iter().zip(timings).zip(images) {
+        let image = image.ok_or("no runs")?;
+        let png = out_dir.join("images").join(format!("{stem}-{}.png", preset.name));
+        lucent_assets::save_png(&png, image.width, image.height, &image.to_srgb8()).map_err(|e| e.to_string())?;
+        let up = upsample(&image, reference.image.width, reference.image.height);
+        let error = metrics::compare(&up.pixels, &reference.image.pixels).ok_or("empty image")?;
+        let flip = flip_mean(&up, &reference.image).ok_or("empty image")?;
+        presets.push(PresetResult {
+            name: preset.name.to_owned(),
+            settings: describe(preset, &base),
+            runs,
+            error,
+            flip,
+        });
+        upsampled.push(up);
+    }
+    let result = SceneResult {
+        scene: shown(path),
+        stem: stem.clone(),
+        reference: ReferenceSummary {
+            describe: ref_settings.describe(),
+            noise_rmse: reference.noise_rmse,
+            render_s: reference.render_s,
+            cached: reference.cached,
+            key: reference.key.clone(),
+        },
+        presets,
+    };
+    let mut tiles: Vec<(&Image, [String; 2])> = result
+        .presets
+        .iter()
+        .zip(&upsampled)
+        .map(|(p, img)| {
+            (
+                img,
+                [
+                    format!("{}: {} s", p.name, report::sig(p.time(), 3)),
+                    format!(
+                        "RMSE {}  PSNR {:.1} dB  FLIP {}",
+                        report::sig(p.error.rmse, 3),
+                        p.error.psnr,
+                        report::sig(p.flip, 3)
+                    ),
+                ],
+            )
+        })
+        .collect();
+    tiles.push((
+        &reference.image,
+        [
+            format!("reference: {} spp path", ref_settings.spp),
+            format!("own noise RMSE {}", report::sig(reference.noise_rmse, 3)),
+        ],
+    ));
+    plot::contact_sheet(&tiles, 3, &out_dir.join(format!("{stem}-contact.png")))?;
+    Ok(result)
+}
+
+/// The reference from the cache, or rendered and stored.
+fn get_reference(
+    path: &Path,
+    stem: &str,
+    bytes: &[u8],
+    scene: &lucent_scene::Scene,
+    settings: &RefSettings,
+    cache: &Path,
+) -> Result<Reference, String> {
+    let root = crate::root();
+    let (key, manifest) = reference::cache_key(&root, path, bytes, settings, &reference::renderer_inputs(&root))?;
+    let exr = cache.join(format!("{stem}-{key}.exr"));
+    if let Some((image, noise_rmse, render_s)) = reference::load_cached(&exr)
+        && image.width == settings.width
+        && image.height == settings.height
+    {
+        println!("  reference from the cache: {}", exr.display());
+        return Ok(Reference {
+            image,
+            noise_rmse,
+            render_s,
+            cached: true,
+            key,
+        });
+    }
+    println!(
+        "  rendering the reference ({}); cached as {}",
+        settings.describe(),
+        exr.display()
+    );
+    let rs = extract_with(scene, &lucent_render::ExtractOptions::default())
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let (image, noise_rmse, render_s) = reference::render_reference(&rs, &scene.settings, settings, &|done, secs| {
+        println!("    batch {done}/{} done, {secs:.0} s", settings.chunks);
+    });
+    reference::store(&exr, &image, noise_rmse, render_s, &manifest)?;
+    Ok(Reference {
+        image,
+        noise_rmse,
+        render_s,
+        cached: false,
+        key,
+    })
+}
+
+/// One timed extract + render of a preset; the image as linear radiance.
+fn time_preset(
+    scene: &lucent_scene::Scene,
+    base: &RenderSettings,
+    preset: &QualityPreset,
+) -> Result<(Timing, Image), String> {
+    let mut settings = *base;
+    preset.apply(&mut settings);
+    let start = Instant::now();
+    let rs = extract_with(scene, &preset.extract_options()).map_err(|e| e.to_string())?;
+    if settings.integrator == Integrator::Path {
+        // Built on first use otherwise: count it as BVH time, as `lucent
+        // render` does.
+        let _ = rs.flat_bvh();
+    }
+    let extract_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let out = render(&rs, &settings, &|_| {});
+    let render_s = start.elapsed().as_secs_f64();
+    Ok((Timing { extract_s, render_s }, Image::from_film(&out.film)))
+}
+
+/// A preset's settings on a scene, one line.
+fn describe(p: &QualityPreset, base: &RenderSettings) -> String {
+    let mut s = *base;
+    p.apply(&mut s);
+    let model = match p.integrator {
+        Integrator::Whitted => format!(
+            "Whitted {}, depth {}, min weight {}",
+            p.shading.name(),
+            p.max_depth,
+            p.min_weight
+        ),
+        Integrator::Path => format!("path, depth {}, roulette from {}", p.max_depth, p.rr_depth),
+    };
+    format!(
+        "{}x{} ({}x), {} spp, {model}, BVH {}",
+        s.width,
+        s.height,
+        p.resolution_scale,
+        p.spp,
+        p.bvh_quality.name()
+    )
+}
+
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".to_owned())
+}
+
+fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_owned())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_owned())
+}
+
+fn git_commit() -> String {
+    let git = |args: &[&str]| {
+        Command::new("git")
+            .args(args)
+            .current_dir(crate::root())
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned())
+    };
+    let Some(head) = git(&["rev-parse", "--short", "HEAD"]) else {
+        return "unknown".to_owned();
+    };
+    let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+    if dirty {
+        format!("{head} (with uncommitted changes)")
+    } else {
+        head
+    }
+}
+
+/// The current UTC time as `YYYY-MM-DD HH:MM UTC`.
+fn utc_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    format_utc(secs)
+}
+
+/// `secs` since the Unix epoch as a UTC date and time (proleptic Gregorian
+/// calendar; days to civil date after Howard Hinnant's published method).
+fn format_utc(secs: u64) -> String {
+    let days = (secs / 86_400) as i64;
+    let rem = secs % 86_400;
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02} {:02}:{:02} UTC",
+        rem / 3600,
+        (rem % 3600) / 60
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dates() {
+        assert_eq!(format_utc(0), "1970-01-01 00:00 UTC");
+        assert_eq!(format_utc(951_782_400), "2000-02-29 00:00 UTC");
+        assert_eq!(format_utc(1_700_000_000), "2023-11-14 22:13 UTC");
+    }
+
+    #[test]
+    fn options() {
+        let args = |s: &str| s.split_whitespace().map(str::to_owned).collect::<Vec<_>>();
+        let o = parse(&args("a.toml --runs 5 --check b.toml --ref-spp 64")).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(o.scenes, vec![PathBuf::from("a.toml"), PathBuf::from("b.toml")]);
+        assert_eq!((o.runs, o.ref_spp, o.check, o.threads), (5, Some(64), true, 0));
+        assert!(!o.reference_only && parse(&args("--reference-only")).is_ok_and(|o| o.reference_only));
+        let o = parse(&[]).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(o.scenes.len(), 2);
+        assert!(o.scenes.iter().all(|s| s.is_file()), "{:?}", o.scenes);
+        assert_eq!(o.runs, DEFAULT_RUNS);
+        assert!(parse(&args("--runs 0")).is_err());
+        assert!(parse(&args("--runs")).is_err());
+        assert!(parse(&args("--bogus")).is_err());
+    }
+
+    /// The whole measurement on a tiny scene (12x8 pixels, a 32-spp
+    /// reference): every preset measured, outputs written, the reference
+    /// cached and found again. Times are not checked.
+    #[test]
+    fn measures_a_tiny_scene_end_to_end() {
+        let dir = std::env::temp_dir().join(format!("lucent-tradeoff-e2e-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("out/images")).unwrap_or_else(|e| panic!("{e}"));
+        let scene = dir.join("tiny.toml");
+        let text = "[render]\nwidth = 12\nheight = 8\n\n[camera]\ncenter = [0.0, 0.0, 0.0]\nradius = 4.0\n\n\
+                    [[lights]]\ntype = \"directional\"\nto_light = [0.3, 1.0, 0.5]\nintensity = 2.0\n\n\
+                    [materials.white]\nkd = 0.8\n\n\
+                    [[objects]]\nname = \"ball\"\nshape = \"sphere\"\nsubdivisions = 2\nmaterial = \"white\"\n";
+        std::fs::write(&scene, text).unwrap_or_else(|e| panic!("{e}"));
+        let opts = parse(&[
+            scene.display().to_string(),
+            "--runs".into(),
+            "2".into(),
+            "--ref-spp".into(),
+            "32".into(),
+        ])
+        .unwrap_or_else(|e| panic!("{e}"));
+        let out = dir.join("out");
+        let first = measure_scene(&scene, &opts, &out).unwrap_or_else(|e| panic!("{e}"));
+        assert!(!first.reference.cached);
+        assert_eq!(first.presets.len(), PRESETS.len());
+        for (p, want) in first.presets.iter().zip(&PRESETS) {
+            assert_eq!(p.name, want.name);
+            assert_eq!(p.runs.len(), 2);
+            assert!(p.error.rmse.is_finite() && p.error.rmse > 0.0, "{p:?}");
+            assert!((0.0..=1.0).contains(&p.flip), "{p:?}");
+            assert!(out.join(format!("images/tiny-{}.png", p.name)).is_file());
+        }
+        // 32 spp in 16 batches: a noise estimate exists.
+        assert!(first.reference.noise_rmse.is_finite() && first.reference.noise_rmse > 0.0);
+        assert!(out.join("tiny-contact.png").is_file());
+        let cached = std::fs::read_dir(out.join("cache")).map_or(0, |d| d.count());
+        assert_eq!(cached, 2, "an EXR and its manifest");
+        let again = measure_scene(&scene, &opts, &out).unwrap_or_else(|e| panic!("{e}"));
+        assert!(again.reference.cached);
+        assert_eq!(again.reference.key, first.reference.key);
+        // Deterministic renders: the same errors from the cached reference.
+        for (a, b) in first.presets.iter().zip(&again.presets) {
+            assert_eq!(a.error, b.error, "{}", a.name);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn preset_descriptions_name_size_and_model() {
+        let base = RenderSettings {
+            width: 640,
+            height: 360,
+            ..RenderSettings::default()
+        };
+        for p in &PRESETS {
+            let d = describe(p, &base);
+            assert!(d.contains(&format!("{} spp", p.spp)), "{d}");
+            assert!(
+                d.contains(if p.integrator == Integrator::Path {
+                    "path"
+                } else {
+                    "Whitted"
+                }),
+                "{d}"
+            );
+        }
+    }
+}
