@@ -237,7 +237,7 @@ impl LightSet {
     /// Picks a light with `u_pick` and a point on it with `u`, as seen from
     /// `from`; `None` when there is no light, the pick has zero density, or
     /// the point is behind an emitter.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, from: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
         if self.cdf.is_empty() {
             return None;

@@ -256,7 +256,10 @@ impl<'a> PathTracer<'a> {
     }
 
     /// World-space geometry of a hit; `None` for a degenerate triangle.
-    #[inline]
+    /// Always inlined: with one call site per specialised variant of
+    /// [`PathTracer::trace`] the compiler would otherwise call it, which
+    /// cost 2 to 3% more instructions per path (cachegrind).
+    #[inline(always)]
     fn hit(&self, sh: &SceneHit) -> Option<Hit> {
         let inst = self.scene.instances.get(sh.instance as usize)?;
         let mesh = self.scene.meshes.get(inst.mesh as usize)?;

@@ -148,6 +148,7 @@ impl<'a> Whitted<'a> {
     }
 
     /// The report's local model times its shadow factors.
+    #[inline(always)]
     fn local<const TRANSMISSIVE: bool>(
         &self,
         ray: &Ray,
@@ -262,6 +263,11 @@ impl<'a> Whitted<'a> {
     }
 
     /// World-space geometry of a hit.
+    ///
+    /// Always inlined, as [`Whitted::local`] is: with one caller per
+    /// specialised variant of `trace` the compiler would call them instead,
+    /// about 1% more instructions per ray (cachegrind, Cornell box).
+    #[inline(always)]
     fn surface(&self, hit: &SceneHit, ray: &Ray) -> Surface {
         let inst = &self.scene.instances[hit.instance as usize];
         let mesh = &self.scene.meshes[inst.mesh as usize];
