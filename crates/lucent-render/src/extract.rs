@@ -196,8 +196,6 @@ pub struct RenderScene {
     pub light_set: LightSet,
     /// BVH build settings, kept for the lazily built flat tree.
     build: BuildParams,
-    /// Extracted with [`ExtractOptions::all_features`].
-    all_features: bool,
     /// Every instance's triangles in one render-space BVH, built the first
     /// time [`RenderScene::flat_bvh`] asks for it (only the path tracer
     /// does, so Whitted renders and the viewer's start do not pay for it).
@@ -332,7 +330,6 @@ pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderSce
         features,
         light_set,
         build: params,
-        all_features: options.all_features,
         flat_bvh: OnceLock::new(),
     })
 }
@@ -495,13 +492,6 @@ impl RenderScene {
         self.flat_bvh
             .get_or_init(|| FlatBvh::build(&self.meshes, &self.instances, &self.build, MAX_FLAT_TRIANGLES))
             .as_ref()
-    }
-
-    /// Whether it was extracted with [`ExtractOptions::all_features`]: the
-    /// integrators then also keep per-material work they could skip (the
-    /// Whitted highlight of a material without `ks`).
-    pub fn all_features(&self) -> bool {
-        self.all_features
     }
 
     /// Triangles over all instances.

@@ -52,18 +52,7 @@ pub struct Whitted<'a> {
     max_depth: u32,
     min_weight: f32,
     shading: Shading,
-    /// Per material: whether its Phong terms can leave the highlight out
-    /// (`ks` is zero, so the highlight adds nothing; see [`Whitted::terms`]).
-    diffuse_only: Vec<bool>,
 }
-
-/// Highest Phong exponent for which a material without `ks` skips the
-/// highlight: `(R.V)^n` stays finite below it (R.V exceeds 1 by rounding
-/// only, by less than 1e-6), so `0 * highlight` is exactly zero.
-const MAX_SKIPPED_SHININESS: f32 = 1e6;
-/// Largest light intensity for which the highlight is skipped, for the
-/// same reason.
-const MAX_SKIPPED_INTENSITY: f32 = 1e30;
 
 /// Geometry at a hit, in world space.
 struct Surface {
@@ -94,17 +83,11 @@ struct Surface {
 impl<'a> Whitted<'a> {
     /// A tracer for `scene` using the recursion and shading settings.
     pub fn new(scene: &'a RenderScene, settings: &RenderSettings) -> Self {
-        let diffuse_only = scene
-            .materials
-            .iter()
-            .map(|m| !scene.all_features() && m.ks == Vec3::ZERO && m.shininess < MAX_SKIPPED_SHININESS)
-            .collect();
         Self {
             scene,
             max_depth: settings.max_depth,
             min_weight: settings.min_weight,
             shading: settings.shading,
-            diffuse_only,
         }
     }
 
@@ -217,10 +200,7 @@ impl<'a> Whitted<'a> {
     }
 
     /// Phong terms for one light: at the hit point (Phong) or at the corners,
-    /// interpolated (Gouraud). A material without `ks` gets no highlight
-    /// term (no `powf`): `combine` would multiply it by zero, and the bounds
-    /// on the exponent and the intensity keep it finite, so the sum is the
-    /// same to the bit.
+    /// interpolated (Gouraud).
     fn terms(
         &self,
         ray: &Ray,
@@ -230,14 +210,6 @@ impl<'a> Whitted<'a> {
         ls: &LightSample,
     ) -> PhongTerms {
         let n = material.shininess;
-        let diffuse_only = self.diffuse_only.get(surf.material as usize).copied().unwrap_or(false);
-        let phong_terms = |normal: Vec3, to_light: Vec3, v: Vec3, n: f32, ip: Vec3| {
-            if diffuse_only && ip.abs().max_element() < MAX_SKIPPED_INTENSITY {
-                diffuse_term(normal, to_light, ip)
-            } else {
-                phong_terms(normal, to_light, v, n, ip)
-            }
-        };
         match (self.shading, surf.corner_normals) {
             (Shading::Gouraud, Some(normals)) => {
                 let mut sum = PhongTerms::default();
@@ -352,20 +324,6 @@ impl Surface {
     #[inline]
     fn offset(&self, q: Vec3, n: Vec3) -> Vec3 {
         offset_ray_origin_scaled(q, n, self.magnitude)
-    }
-}
-
-/// [`phong_terms`] without the highlight: the same diffuse term, to the bit,
-/// and a zero specular one.
-#[inline]
-fn diffuse_term(n: Vec3, l: Vec3, ip: Vec3) -> PhongTerms {
-    let n_dot_l = n.dot(l);
-    if n_dot_l.is_nan() || n_dot_l <= 0.0 {
-        return PhongTerms::default();
-    }
-    PhongTerms {
-        diffuse: ip * n_dot_l,
-        specular: Vec3::ZERO,
     }
 }
 
