@@ -4,7 +4,7 @@
 //! it addresses meshes, materials and instances by `u32` index.
 
 use crate::flat::{FlatBvh, MAX_FLAT_TRIANGLES};
-use crate::lights::LightSet;
+use crate::lights::{LightSet, emits};
 use lucent_accel::{BuildParams, BuildQuality, Instance, MeshBvh, SceneBvh};
 use lucent_geom::{Affine3A, Mat3A, TriMesh, Vec3};
 use lucent_scene::camera::{Camera, OrbitRig};
@@ -27,17 +27,138 @@ pub struct RenderInstance {
     pub world_from_object: Affine3A,
     /// Transforms object-space normals to world space (inverse transpose).
     pub normal_from_object: Mat3A,
+    /// The per-vertex arrays of the mesh that shading this instance reads.
+    pub reads: VertexReads,
 }
 
-/// What the scene contains, so the renderer can skip what it does not need.
+/// Which per-vertex arrays of an instance's mesh the integrators read at a
+/// hit. An array the mesh lacks is never read; one it has is skipped when
+/// nothing the instance's material does depends on it (texture coordinates
+/// without a texture). The mesh itself is not changed: it is shared with
+/// the scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct VertexReads {
+    /// Vertex normals, interpolated into the shading normal.
+    pub normals: bool,
+    /// Texture coordinates, interpolated for the diffuse texture lookup.
+    pub uvs: bool,
+    /// Vertex colours, which tint the diffuse (and ambient) colour.
+    pub colors: bool,
+}
+
+impl VertexReads {
+    /// What `material` on `mesh` needs; with `all` every array the mesh has.
+    pub fn of(mesh: &TriMesh, material: &Material, all: bool) -> VertexReads {
+        VertexReads {
+            normals: mesh.normals().is_some(),
+            uvs: mesh.uvs().is_some() && (all || material.diffuse_map.is_some()),
+            colors: mesh.colors().is_some(),
+        }
+    }
+}
+
+/// What the scene contains, so the renderer does only the work it needs.
+///
+/// [`extract_with`] derives it from the instances (a material or mesh no
+/// instance uses counts for nothing) and the lights, and the integrators
+/// pick code specialised on it once per render:
+///
+/// | feature | what is skipped without it |
+/// | --- | --- |
+/// | `transmissive` | Whitted refraction rays; shadow rays stop at the first surface they meet (any-hit) instead of visiting every surface and multiplying `kt` |
+/// | `reflective` | Whitted mirror rays |
+/// | `textured` | texture coordinate interpolation and texture lookups (per instance, see [`VertexReads`]); the path tracer's per-hit BSDF set-up |
+/// | `emissive` | the light set's table of emissive triangles per instance, and the path tracer's emission lookup and MIS weight at every path vertex |
+///
+/// `point_lights`, `directional_lights`, `smooth_normals` and
+/// `vertex_colors` describe the scene for `lucent info`; their work is done
+/// per light or per mesh array only where they exist anyway.
+/// [`ExtractOptions::all_features`] turns every feature on, which renders
+/// the same image by the general code (the baseline to measure against).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SceneFeatures {
     /// Some material lets light through (refraction rays, attenuating shadows).
     pub transmissive: bool,
     /// Some material is a mirror (reflection rays).
     pub reflective: bool,
-    /// Some material has a texture.
+    /// Some instance has a textured material on a mesh with texture
+    /// coordinates (UV interpolation, texture lookups).
     pub textured: bool,
+    /// Some instance's material emits: emissive triangles are area lights.
+    pub emissive: bool,
+    /// The scene has point lights.
+    pub point_lights: bool,
+    /// The scene has directional lights.
+    pub directional_lights: bool,
+    /// Some instance's mesh has vertex normals (smooth shading).
+    pub smooth_normals: bool,
+    /// Some instance's mesh has vertex colours.
+    pub vertex_colors: bool,
+}
+
+impl SceneFeatures {
+    /// Every feature on.
+    pub const ALL: SceneFeatures = SceneFeatures {
+        transmissive: true,
+        reflective: true,
+        textured: true,
+        emissive: true,
+        point_lights: true,
+        directional_lights: true,
+        smooth_normals: true,
+        vertex_colors: true,
+    };
+
+    /// The names of the features that are on, in a fixed order (the names
+    /// `lucent info` prints).
+    ///
+    /// ```
+    /// use lucent_render::SceneFeatures;
+    /// let f = SceneFeatures { reflective: true, emissive: true, ..SceneFeatures::default() };
+    /// assert_eq!(f.names(), ["reflective", "emissive"]);
+    /// assert_eq!(SceneFeatures::ALL.names().len(), 8);
+    /// ```
+    pub fn names(&self) -> Vec<&'static str> {
+        [
+            ("transmissive", self.transmissive),
+            ("reflective", self.reflective),
+            ("textured", self.textured),
+            ("emissive", self.emissive),
+            ("point_lights", self.point_lights),
+            ("directional_lights", self.directional_lights),
+            ("smooth_normals", self.smooth_normals),
+            ("vertex_colors", self.vertex_colors),
+        ]
+        .into_iter()
+        .filter_map(|(name, on)| on.then_some(name))
+        .collect()
+    }
+
+    /// What `instances` of `meshes` and `materials` lit by `lights` need.
+    fn analyse(
+        meshes: &[Arc<TriMesh>],
+        materials: &[Material],
+        instances: &[RenderInstance],
+        lights: &[Light],
+    ) -> Self {
+        let mut f = SceneFeatures {
+            point_lights: lights.iter().any(|l| matches!(l, Light::Point { .. })),
+            directional_lights: lights.iter().any(|l| matches!(l, Light::Directional { .. })),
+            ..SceneFeatures::default()
+        };
+        for inst in instances {
+            let (Some(mesh), Some(m)) = (meshes.get(inst.mesh as usize), materials.get(inst.material as usize)) else {
+                continue;
+            };
+            f.transmissive |= m.is_transmissive();
+            f.reflective |= m.is_reflective();
+            f.textured |= m.diffuse_map.is_some() && mesh.uvs().is_some();
+            f.emissive |= emits(m);
+            f.smooth_normals |= mesh.normals().is_some();
+            f.vertex_colors |= mesh.colors().is_some();
+        }
+        f
+    }
 }
 
 /// The flattened scene the kernel renders.
@@ -129,12 +250,19 @@ pub struct ExtractOptions {
     /// Effort of the BVH builds: [`BuildQuality::Fast`] builds sooner and
     /// traces slower, [`BuildQuality::High`] the other way round.
     pub bvh_quality: BuildQuality,
+    /// Keep every [`SceneFeatures`] feature on and read every vertex array,
+    /// whatever the scene contains: the general renderer, which gives the
+    /// same image as the specialised one, more slowly. It is the baseline
+    /// that `lucent bench render --all-features` measures the saving
+    /// against. Default `false`.
+    pub all_features: bool,
 }
 
 impl Default for ExtractOptions {
     fn default() -> Self {
         Self {
             bvh_quality: BuildQuality::Default,
+            all_features: false,
         }
     }
 }
@@ -153,7 +281,7 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
 /// use lucent_scene::{Scene, components::{Camera, OrbitRig}};
 /// let mut scene = Scene::default();
 /// scene.add_camera("cam", Camera::default(), OrbitRig::default());
-/// let options = ExtractOptions { bvh_quality: BuildQuality::Fast };
+/// let options = ExtractOptions { bvh_quality: BuildQuality::Fast, ..ExtractOptions::default() };
 /// let rs = extract_with(&scene, &options)?;
 /// assert_eq!(rs.n_instanced_triangles(), 0);
 /// # Ok::<(), lucent_render::ExtractError>(())
@@ -161,6 +289,91 @@ pub fn extract(scene: &Scene) -> Result<RenderScene, ExtractError> {
 pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderScene, ExtractError> {
     let (camera, rig) = scene.camera().ok_or(ExtractError::NoCamera)?;
     let origin = render_origin(&rig);
+    let Gathered {
+        meshes,
+        materials,
+        instances,
+        instance_names,
+        bvh_instances,
+        lights,
+        features,
+    } = gather(scene, origin, options.all_features)?;
+
+    let params = BuildParams::for_quality(options.bvh_quality);
+    let blas: Vec<Arc<MeshBvh>> = meshes
+        .par_iter()
+        .map(|m| Arc::new(MeshBvh::build(m, &params)))
+        .collect();
+    let bvh = SceneBvh::build(blas, bvh_instances, &params);
+
+    let bounds = bvh.bounds();
+    let scene_radius = if bounds.is_empty() {
+        0.0
+    } else {
+        0.5 * bounds.extent().length()
+    };
+    // Without emissive materials there is no per-instance emitter table to
+    // build or to consult: the set holds the point and directional lights.
+    let emitting: &[RenderInstance] = if features.emissive { &instances } else { &[] };
+    let light_set = LightSet::new(&meshes, &materials, emitting, &lights, scene_radius);
+    Ok(RenderScene {
+        meshes,
+        materials,
+        instances,
+        instance_names,
+        lights,
+        camera,
+        rig,
+        origin,
+        environment: scene.environment,
+        bvh,
+        features,
+        light_set,
+        build: params,
+        flat_bvh: OnceLock::new(),
+    })
+}
+
+/// The [`SceneFeatures`] that [`extract_with`] would find for `scene` and
+/// `options` (all of them with [`ExtractOptions::all_features`]), without
+/// building any BVH: what `lucent info` lists.
+///
+/// ```
+/// use lucent_render::{ExtractOptions, SceneFeatures, extract, scene_features};
+/// use lucent_scene::{Scene, components::*};
+/// use lucent_geom::{shapes, Affine3A, Vec3};
+/// let mut scene = Scene::default();
+/// let mesh = scene.add_mesh("ball", shapes::icosphere(1));
+/// let glass = scene.add_material("glass", Material { kt: Vec3::ONE, ..Material::default() });
+/// scene.add_instance("ball", mesh, glass, Affine3A::IDENTITY);
+/// scene.add_camera("cam", Camera::default(), OrbitRig::default());
+/// let features = scene_features(&scene, &ExtractOptions::default())?;
+/// assert_eq!(features.names(), ["transmissive", "smooth_normals"]);
+/// assert_eq!(features, extract(&scene)?.features);
+/// let all = ExtractOptions { all_features: true, ..ExtractOptions::default() };
+/// assert_eq!(scene_features(&scene, &all)?, SceneFeatures::ALL);
+/// # Ok::<(), lucent_render::ExtractError>(())
+/// ```
+pub fn scene_features(scene: &Scene, options: &ExtractOptions) -> Result<SceneFeatures, ExtractError> {
+    let (_, rig) = scene.camera().ok_or(ExtractError::NoCamera)?;
+    Ok(gather(scene, render_origin(&rig), options.all_features)?.features)
+}
+
+/// The scene's instances, meshes, materials and lights in render space,
+/// and what they need, before any BVH is built.
+struct Gathered {
+    meshes: Vec<Arc<TriMesh>>,
+    materials: Vec<Material>,
+    instances: Vec<RenderInstance>,
+    instance_names: Vec<String>,
+    bvh_instances: Vec<Instance>,
+    lights: Vec<Light>,
+    features: SceneFeatures,
+}
+
+/// Flattens the world's instances and lights into render space (moved by
+/// `-origin`) and analyses what they need; `all` turns every feature on.
+fn gather(scene: &Scene, origin: Vec3, all: bool) -> Result<Gathered, ExtractError> {
     let render_from_world = Affine3A::from_translation(-origin);
     let world = &scene.world;
     let mut rows: Vec<(Entity, Entity, Entity, String)> = world
@@ -194,21 +407,16 @@ pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderSce
         let bvh_instance = Instance::new(world_from_object, mesh)
             .ok_or_else(|| ExtractError::SingularTransform { instance: name.clone() })?;
         bvh_instances.push(bvh_instance);
+        let reads = VertexReads::of(&meshes[mesh as usize], &materials[material as usize], all);
         instances.push(RenderInstance {
             mesh,
             material,
             world_from_object,
             normal_from_object: world_from_object.matrix3.inverse().transpose(),
+            reads,
         });
         instance_names.push(name);
     }
-
-    let params = BuildParams::for_quality(options.bvh_quality);
-    let blas: Vec<Arc<MeshBvh>> = meshes
-        .par_iter()
-        .map(|m| Arc::new(MeshBvh::build(m, &params)))
-        .collect();
-    let bvh = SceneBvh::build(blas, bvh_instances, &params);
 
     let mut lights: Vec<(u64, Light)> = world
         .query::<(Entity, &Light)>()
@@ -217,33 +425,19 @@ pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderSce
         .collect();
     lights.sort_by_key(|l| l.0);
     let lights: Vec<Light> = lights.into_iter().map(|(_, l)| l).collect();
-    let bounds = bvh.bounds();
-    let scene_radius = if bounds.is_empty() {
-        0.0
+    let features = if all {
+        SceneFeatures::ALL
     } else {
-        0.5 * bounds.extent().length()
+        SceneFeatures::analyse(&meshes, &materials, &instances, &lights)
     };
-    let light_set = LightSet::new(&meshes, &materials, &instances, &lights, scene_radius);
-    let features = SceneFeatures {
-        transmissive: materials.iter().any(Material::is_transmissive),
-        reflective: materials.iter().any(Material::is_reflective),
-        textured: materials.iter().any(|m| m.diffuse_map.is_some()),
-    };
-    Ok(RenderScene {
+    Ok(Gathered {
         meshes,
         materials,
         instances,
         instance_names,
+        bvh_instances,
         lights,
-        camera,
-        rig,
-        origin,
-        environment: scene.environment,
-        bvh,
         features,
-        light_set,
-        build: params,
-        flat_bvh: OnceLock::new(),
     })
 }
 
@@ -353,7 +547,105 @@ mod tests {
         assert_eq!(rs.bvh.meshes().len(), 1);
         assert_eq!((rs.n_instanced_triangles(), rs.n_unique_triangles()), (160, 80));
         assert_eq!(rs.instance_names, vec!["a".to_owned(), "b".to_owned()]);
-        assert!(rs.features.transmissive && !rs.features.reflective && !rs.features.textured);
+        assert_eq!(rs.features.names(), ["transmissive", "smooth_normals"]);
+    }
+
+    #[test]
+    fn features_come_from_what_instances_use_and_all_features_turns_every_one_on() {
+        let (mut scene, ball, _) = scene();
+        let tex = lucent_scene::components::Texture::new(1, 1, vec![Vec3::ONE])
+            .map(Arc::new)
+            .ok();
+        let textured = Material {
+            diffuse_map: tex,
+            ..Material::default()
+        };
+        let lamp = Material {
+            emission: Vec3::splat(2.0),
+            ..Material::default()
+        };
+        let mirror = Material {
+            kr: Vec3::ONE,
+            ..Material::default()
+        };
+        // A material or mesh no instance uses turns nothing on.
+        scene.add_material("unused mirror", mirror.clone());
+        let colours = TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]])
+            .and_then(|m| m.with_colors(vec![Vec3::ONE; 3]))
+            .unwrap_or_else(|e| panic!("{e}"));
+        scene.add_mesh("unused colours", colours);
+        let features = |s: &Scene, all: bool| {
+            let options = ExtractOptions {
+                all_features: all,
+                ..ExtractOptions::default()
+            };
+            let f = scene_features(s, &options).unwrap_or_else(|e| panic!("{e}"));
+            let rs = extract_with(s, &options).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(f, rs.features, "scene_features agrees with extract");
+            rs
+        };
+        let rs = features(&scene, false);
+        assert_eq!(rs.features.names(), ["transmissive", "smooth_normals"]);
+        // The icosphere has UVs, but nothing textured reads them.
+        assert!(rs.meshes[0].uvs().is_some());
+        let reads = VertexReads {
+            normals: true,
+            uvs: false,
+            colors: false,
+        };
+        assert!(rs.instances.iter().all(|i| i.reads == reads));
+        // No emitter: no per-instance emitter table.
+        assert!(rs.light_set.is_empty() && rs.light_set.emitters().is_empty());
+
+        let all = features(&scene, true);
+        assert_eq!(all.features, SceneFeatures::ALL);
+        assert!(
+            all.instances
+                .iter()
+                .all(|i| i.reads == VertexReads { uvs: true, ..reads })
+        );
+        assert!(
+            rs.light_set.bytes() < all.light_set.bytes(),
+            "the emitter table is left out"
+        );
+
+        // A textured instance on a mesh with UVs, a lamp, lights of both kinds.
+        let tex_m = scene.add_material("tex", textured.clone());
+        let lamp_m = scene.add_material("lamp", lamp);
+        scene.add_instance("textured", ball, tex_m, Affine3A::IDENTITY);
+        scene.add_instance("lamp", ball, lamp_m, Affine3A::from_translation(Vec3::Y * 4.0));
+        scene.add_light(
+            "sun",
+            Light::Directional {
+                to_light: Vec3::Y,
+                intensity: Vec3::ONE,
+            },
+        );
+        let rs = features(&scene, false);
+        assert_eq!(
+            rs.features.names(),
+            [
+                "transmissive",
+                "textured",
+                "emissive",
+                "directional_lights",
+                "smooth_normals"
+            ]
+        );
+        let textured_reads: Vec<bool> = rs.instances.iter().map(|i| i.reads.uvs).collect();
+        assert_eq!(textured_reads, [false, false, true, false]);
+        assert_eq!(rs.light_set.emitters().len(), 80);
+        assert!(rs.light_set.emitter(3, 0).is_some() && rs.light_set.emitter(0, 0).is_none());
+
+        // A texture on a mesh without UVs has nothing to look up.
+        let (mut bare, _, _) = self::scene();
+        let plain = bare.add_mesh(
+            "no uvs",
+            TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]).unwrap_or_else(|e| panic!("{e}")),
+        );
+        let tex_m = bare.add_material("tex", textured);
+        bare.add_instance("no uvs", plain, tex_m, Affine3A::IDENTITY);
+        assert!(!features(&bare, false).features.textured);
     }
 
     #[test]

@@ -113,6 +113,7 @@ mod tests {
             material: 0,
             world_from_object: xf,
             normal_from_object: Mat3A::IDENTITY,
+            reads: crate::VertexReads::default(),
         };
         let instances = vec![
             place(0, Affine3A::from_translation(Vec3::new(-1.5, 0.0, 0.0))),

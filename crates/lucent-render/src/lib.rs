@@ -46,7 +46,8 @@ pub mod whitted;
 
 pub use camera::PinholeCamera;
 pub use extract::{
-    ExtractError, ExtractOptions, RenderInstance, RenderScene, SceneFeatures, extract, extract_with, render_origin,
+    ExtractError, ExtractOptions, RenderInstance, RenderScene, SceneFeatures, VertexReads, extract, extract_with,
+    render_origin, scene_features,
 };
 pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;

@@ -24,6 +24,14 @@ use std::sync::Arc;
 /// Marks an instance without emissive triangles.
 const NONE: u32 = u32::MAX;
 
+/// Whether `m` emits light: some channel of its emission above zero, none
+/// infinite or NaN. The triangles of an instance with such a material are
+/// area lights.
+pub(crate) fn emits(m: &Material) -> bool {
+    let e = m.emission.max(Vec3::ZERO);
+    e.max_element() > 0.0 && e.is_finite()
+}
+
 /// One emissive triangle in world space.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Emitter {
@@ -91,17 +99,16 @@ impl LightSet {
         let mut emitters = Vec::new();
         let mut instance_first = Vec::with_capacity(instances.len());
         for inst in instances {
-            let emission = materials
-                .get(inst.material as usize)
-                .map_or(Vec3::ZERO, |m| m.emission.max(Vec3::ZERO));
-            let Some(mesh) = meshes.get(inst.mesh as usize) else {
+            let (Some(mesh), Some(material)) = (meshes.get(inst.mesh as usize), materials.get(inst.material as usize))
+            else {
                 instance_first.push(NONE);
                 continue;
             };
-            if !(emission.max_element() > 0.0 && emission.is_finite()) {
+            if !emits(material) {
                 instance_first.push(NONE);
                 continue;
             }
+            let emission = material.emission.max(Vec3::ZERO);
             instance_first.push(emitters.len() as u32);
             for (t, idx) in mesh.indices().iter().enumerate() {
                 let obj = mesh.triangle(t);
@@ -176,6 +183,14 @@ impl LightSet {
         self.cdf.is_empty()
     }
 
+    /// Memory held by the set (its vectors' contents), in bytes.
+    pub fn bytes(&self) -> usize {
+        self.emitters.len() * size_of::<Emitter>()
+            + self.lights.len() * size_of::<Light>()
+            + self.instance_first.len() * size_of::<u32>()
+            + (self.cdf.len() + self.prob.len()) * size_of::<f32>()
+    }
+
     /// The emissive triangles.
     pub fn emitters(&self) -> &[Emitter] {
         &self.emitters
@@ -222,7 +237,7 @@ impl LightSet {
     /// Picks a light with `u_pick` and a point on it with `u`, as seen from
     /// `from`; `None` when there is no light, the pick has zero density, or
     /// the point is behind an emitter.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, from: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
         if self.cdf.is_empty() {
             return None;
@@ -302,6 +317,7 @@ mod tests {
             material,
             world_from_object: Affine3A::IDENTITY,
             normal_from_object: Mat3A::IDENTITY,
+            reads: crate::VertexReads::default(),
         }
     }
 

@@ -3,12 +3,17 @@
 //! `lucent bench render SCENE` renders the scene K times after one warm-up
 //! and reports the median and range of the render time (extract and BVH
 //! build timed separately), so figures can be quoted as medians on a noisy
-//! machine.
+//! machine. `--all-features` renders with every scene feature on (the
+//! general renderer, `ExtractOptions::all_features`) and `--without NAME`
+//! leaves an object out, to measure what specialising on a scene saves.
 
 use crate::{QualityArgs, prepare_scene};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use lucent_render::{Integrator, current_threads, extract_with, render, with_threads};
+use lucent_render::{ExtractOptions, Integrator, current_threads, extract_with, render, with_threads};
+use lucent_scene::Scene;
+use lucent_scene::components::{MeshRef, Name};
+use lucent_scene::hecs::Entity;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -44,6 +49,14 @@ struct RenderBenchArgs {
     threads: Option<u16>,
     #[command(flatten)]
     quality: QualityArgs,
+    /// Keep every scene feature on (transmission, mirrors, textures, area
+    /// lights): the general renderer, the baseline the specialised one is
+    /// measured against. Same image.
+    #[arg(long)]
+    all_features: bool,
+    /// Leave out the object NAME (its `name` in the scene file); repeatable.
+    #[arg(long, value_name = "NAME")]
+    without: Vec<String>,
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
@@ -55,12 +68,19 @@ pub fn run(args: BenchArgs) -> Result<()> {
 }
 
 fn bench_render(args: RenderBenchArgs) -> Result<()> {
-    let (scene, name, load_s) = prepare_scene(args.scene.as_deref(), &args.quality, args.spp)?;
+    let (mut scene, name, load_s) = prepare_scene(args.scene.as_deref(), &args.quality, args.spp)?;
+    for object in &args.without {
+        remove_object(&mut scene, object).with_context(|| name.clone())?;
+    }
+    let options = ExtractOptions {
+        all_features: args.all_features,
+        ..args.quality.extract_options()
+    };
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
     let json = with_threads(threads, || -> Result<String> {
         let t_build = Instant::now();
-        let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
+        let rs = extract_with(&scene, &options).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
             // The path tracer's one-level tree is built on demand; build it
             // here so it counts as BVH time, not render time.
@@ -79,7 +99,7 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
         Ok(format!(
             "{{\"scene\":{},\"width\":{},\"height\":{},\"spp\":{},\"shading\":\"{}\",\"threads\":{},\
 \"triangles\":{},\"load_s\":{:.4},\"build_s\":{:.4},\"reps\":{},\"render_s_median\":{:.4},\
-\"render_s_min\":{:.4},\"render_s_max\":{:.4},\"rays\":{},\"mrays_s\":{:.3}}}",
+\"render_s_min\":{:.4},\"render_s_max\":{:.4},\"rays\":{},\"mrays_s\":{:.3},\"all_features\":{},\"features\":{}}}",
             json_str(&name),
             settings.width,
             settings.height,
@@ -95,9 +115,30 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
             times.last().copied().unwrap_or(0.0),
             rays,
             rays as f64 / 1e6 / median.max(1e-9),
+            args.all_features,
+            serde_json::Value::from(rs.features.names()),
         ))
     })??;
     println!("{json}");
+    Ok(())
+}
+
+/// Removes every object named `object` from the scene (instances only;
+/// the meshes and materials they used stay, unused).
+fn remove_object(scene: &mut Scene, object: &str) -> Result<()> {
+    let found: Vec<Entity> = scene
+        .world
+        .query::<(Entity, &Name, &MeshRef)>()
+        .iter()
+        .filter(|(_, n, _)| n.0 == object)
+        .map(|(e, _, _)| e)
+        .collect();
+    if found.is_empty() {
+        bail!("no object named '{object}'");
+    }
+    for e in found {
+        scene.world.despawn(e)?;
+    }
     Ok(())
 }
 

@@ -3,7 +3,8 @@
 //!
 //! Meshes (`.obj`, `.ply`): vertices, triangles, attributes, bounding box,
 //! parts, materials and load warnings. Scenes (`.toml`): entity counts by
-//! kind, the features they use, render settings and warnings. Errors leave
+//! kind, the features they use, the features the renderer's extract step
+//! turns on (`lucent_render::SceneFeatures`), render settings and warnings. Errors leave
 //! through `main` as one `error:` line with exit code 1.
 
 use anyhow::{Result, bail};
@@ -194,6 +195,11 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
     if n_directional > 0 {
         features.insert("directional_lights");
     }
+    // What the renderer specialises on, from the extract's own analysis
+    // (null when the scene cannot be extracted, e.g. without a camera).
+    let render_features = lucent_render::scene_features(scene, &lucent_render::ExtractOptions::default())
+        .ok()
+        .map(|f| f.names());
     let s = &scene.settings;
     json!({
         "kind": "scene",
@@ -208,6 +214,7 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
         },
         "instanced_triangles": triangles,
         "features": features,
+        "render_features": render_features,
         "settings": {
             "width": s.width,
             "height": s.height,

@@ -244,3 +244,49 @@ fn viewer_opens_renders_and_saves_a_screenshot() {
         .count();
     assert!(bright > 160 * 90 / 4, "only {bright} lit pixels");
 }
+
+#[test]
+fn bench_render_measures_the_specialised_and_the_all_features_renderer() {
+    let bench = |extra: &[&str]| {
+        let out = lucent()
+            .args([
+                "bench",
+                "render",
+                "res/scenes/seed.toml",
+                "--size",
+                "24x16",
+                "--spp",
+                "1",
+                "--reps",
+                "1",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            stderr(&out),
+        )
+    };
+    let json = |extra: &[&str]| {
+        let (code, stdout, err) = bench(extra);
+        assert_eq!(code, Some(0), "{err}");
+        serde_json::from_str::<serde_json::Value>(&stdout).unwrap_or_else(|e| panic!("{e}: {stdout}"))
+    };
+    let lean = json(&["--without", "sphere"]);
+    assert_eq!(lean["all_features"], false);
+    assert_eq!(
+        lean["features"],
+        serde_json::json!(["reflective", "textured", "directional_lights", "smooth_normals"])
+    );
+    let all = json(&["--without", "sphere", "--all-features"]);
+    assert_eq!(all["all_features"], true);
+    assert_eq!(all["features"].as_array().map(Vec::len), Some(8));
+    // The same image means the same rays.
+    assert_eq!(lean["rays"], all["rays"]);
+    assert!(lean["triangles"].as_u64() < json(&[])["triangles"].as_u64());
+    let (code, _, err) = bench(&["--without", "teapot"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("no object named 'teapot'"), "{err}");
+}

@@ -102,6 +102,22 @@ fn scene_info_counts_entities_and_features() {
     for f in ["textures", "refraction", "directional_lights", "uvs"] {
         assert!(features.iter().any(|x| x == f), "{f} missing from {features:?}");
     }
+    // What the renderer turns on: the extract's SceneFeatures, in order.
+    assert_eq!(
+        json["render_features"],
+        serde_json::json!([
+            "transmissive",
+            "reflective",
+            "textured",
+            "directional_lights",
+            "smooth_normals"
+        ])
+    );
+    let cornell = info(Path::new("res/scenes/cornell-mitsuba.toml")).unwrap_or_default();
+    assert_eq!(
+        cornell["render_features"],
+        serde_json::json!(["transmissive", "reflective", "emissive", "smooth_normals"])
+    );
 }
 
 #[test]

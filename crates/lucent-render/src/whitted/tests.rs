@@ -469,7 +469,7 @@ fn shadow_rays_through_a_shared_edge_attenuate_once() {
             distance: f32::INFINITY,
             intensity: Vec3::ONE,
         };
-        whitted.shadow(&surf, &ls, &mut RayStats::default())
+        whitted.shadow::<true>(&surf, &ls, &mut RayStats::default())
     };
     // Off the diagonals, then on the top face's diagonal (x = z), on the
     // bottom face's (x = -z) and on both at the centre.
