@@ -2,21 +2,9 @@
 //! print, that their output does not depend on the thread count, and their
 //! errors on bad values.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn lucent() -> Command {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
-    cmd.current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("../.."));
-    cmd
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("budget").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use common::{lucent, scratch};
 
 /// Runs `lucent render` on the Cornell box at 32x32 and returns stdout.
 fn render(extra: &[&str]) -> String {
@@ -47,7 +35,7 @@ fn number_after(line: &str, key: &str) -> f64 {
 /// checks in detail.
 #[test]
 fn a_time_budget_reports_the_spp_reached_and_keeps_to_the_budget() {
-    let dir = scratch("time");
+    let dir = scratch("budget", "time");
     let png = dir.join("t.png");
     let line = render(&["--time-budget", "1s", "-o", png.to_str().unwrap()]);
     assert!(png.exists());
@@ -61,7 +49,7 @@ fn a_time_budget_reports_the_spp_reached_and_keeps_to_the_budget() {
 /// The spp cap: `--spp 2` ends a long budget at two samples per pixel.
 #[test]
 fn spp_caps_a_time_budget() {
-    let exr = scratch("cap").join("c.exr");
+    let exr = scratch("budget", "cap").join("c.exr");
     let line = render(&["--time-budget", "60s", "--spp", "2", "--exr", exr.to_str().unwrap()]);
     assert!(line.contains("2 spp reached (the --spp cap)"), "{line}");
 }
@@ -70,7 +58,7 @@ fn spp_caps_a_time_budget() {
 /// the image is the same bytes on one thread and on three.
 #[test]
 fn a_target_error_is_reached_the_same_on_one_and_three_threads() {
-    let dir = scratch("error");
+    let dir = scratch("budget", "error");
     let run = |threads: &str| {
         let exr = dir.join(format!("e{threads}.exr"));
         let line = render(&[

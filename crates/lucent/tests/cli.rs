@@ -2,34 +2,14 @@
 //! that name file, line and column, PNG output, and the viewer (in a real
 //! window when a display is available, e.g. under Xvfb in CI).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn lucent() -> Command {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
-    cmd.current_dir(repo_root());
-    cmd
-}
-
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
+use common::{lucent, scratch, stderr};
 
 /// Runs `lucent render` on a scene text and returns the error output, which
 /// must be one `error:` line with a non-zero exit code and no panic.
 fn render_error(name: &str, scene_text: &str) -> String {
-    let dir = scratch(name);
+    let dir = scratch("cli", name);
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, scene_text).unwrap();
     let out = lucent()
@@ -50,7 +30,7 @@ fn render_error(name: &str, scene_text: &str) -> String {
 
 #[test]
 fn path_traces_the_cornell_box_to_exr_and_an_exposed_png() {
-    let dir = scratch("cornell");
+    let dir = scratch("cli", "cornell");
     let (exr, png, bright) = (dir.join("c.exr"), dir.join("c.png"), dir.join("bright.png"));
     let run = |extra: &[&str]| {
         let out = lucent()
@@ -101,7 +81,7 @@ fn path_traces_the_cornell_box_to_exr_and_an_exposed_png() {
 
 #[test]
 fn renders_the_seed_scene_to_png() {
-    let dir = scratch("seed");
+    let dir = scratch("cli", "seed");
     let png = dir.join("seed.png");
     let out = lucent()
         .args([
@@ -227,7 +207,7 @@ fn viewer_opens_renders_and_saves_a_screenshot() {
         eprintln!("skipped: no DISPLAY (CI runs this under Xvfb)");
         return;
     }
-    let dir = scratch("viewer");
+    let dir = scratch("cli", "viewer");
     let shot = dir.join("shot.png");
     let out = lucent()
         .args(["view", "--frames", "4", "--size", "160x90", "--screenshot"])

@@ -2,13 +2,12 @@
 //! reports the manifest's triangle count, scenes report their entities,
 //! and failures are one `error:` line with exit code 1.
 
-use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+use common::repo_root;
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
 
 /// Runs `lucent info FILE`: the parsed JSON, or the exit code and stderr.
 fn info(file: &Path) -> Result<Value, (Option<i32>, String)> {

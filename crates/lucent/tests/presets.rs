@@ -2,26 +2,15 @@
 //! size and settings reach the render, explicit flags win, and an unknown
 //! name is a usage error that lists the presets.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn lucent() -> Command {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lucent"));
-    cmd.current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("../.."));
-    cmd
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("presets").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use common::{lucent, scratch};
+use std::process::Output;
 
 /// Renders the seed scene with `args`; returns the summary line and the
 /// PNG's size.
 fn render(name: &str, args: &[&str]) -> (String, (u32, u32)) {
-    let png = scratch(name).join("x.png");
+    let png = scratch("presets", name).join("x.png");
     let out: Output = lucent()
         .args(["render", "res/scenes/seed.toml", "--threads", "2", "-o"])
         .arg(&png)

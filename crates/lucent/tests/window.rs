@@ -5,6 +5,9 @@
 //! xdotool/ImageMagick. Timings here are generous waits, never assertions,
 //! so a slow, loaded machine only makes it slower.
 
+mod common;
+
+use common::scratch;
 use lucent_scene::components::Texture;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -65,13 +68,6 @@ fn parse(line: &str) -> Option<Stat> {
         phi: field(line, "phi")?,
         center,
     })
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("window").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// Why this machine cannot run the window tests, if it cannot.
@@ -245,7 +241,7 @@ fn arrow_drag_and_wheel_move_the_camera_as_commanded() {
         return;
     }
     let _turn = take_turn();
-    let dir = scratch("navigate");
+    let dir = scratch("window", "navigate");
     let mut viewer = Viewer::start(&dir, &["--size", "320x180", "--stats", "--max-spp", "2"]);
     let window = find_window();
     // No window manager under Xvfb: focus the window directly, and keep the
@@ -349,7 +345,7 @@ fn short_soak_of_random_input_keeps_the_camera_finite_and_memory_bounded() {
         return;
     }
     let _turn = take_turn();
-    let dir = scratch("soak");
+    let dir = scratch("window", "soak");
     let mut viewer = Viewer::start(
         &dir,
         &["--size", "160x90", "--stats", "--soak", "6", "--soak-seed", "11"],
