@@ -3,7 +3,9 @@
 //! - every Rust file starts with a `//!` comment saying what it is for;
 //! - dependency ownership: hecs only in lucent-scene, minifb only in the
 //!   app, tobj/ply-rs/image only in lucent-assets (image also in the test
-//!   package), rayon only in lucent-render and lucent-accel;
+//!   package), rayon only in lucent-render and lucent-accel, nv-flip and
+//!   plotters (measuring and plotting tools, C++ in nv-flip's case) only
+//!   in xtask;
 //! - no `#[should_panic]` or `#[ignore]` tests (assert on `Err` instead);
 //! - no trailing whitespace in our sources and docs (asset data under
 //!   `res/meshes` is kept byte-for-byte as shipped and is exempt).
@@ -18,6 +20,8 @@ const OWNERS: &[(&str, &[&str])] = &[
     ("ply-rs", &["lucent-assets"]),
     ("image", &["lucent-assets", "tests"]),
     ("rayon", &["lucent-render", "lucent-accel"]),
+    ("nv-flip", &["xtask"]),
+    ("plotters", &["xtask"]),
 ];
 
 /// Checks every rule; returns the problems found, one line each.
