@@ -21,6 +21,18 @@ mod tidy;
 mod tradeoff;
 mod viewer;
 
+/// Median of a list (mean of the middle two for an even length); NaN when
+/// empty. Shared by the viewer benchmark and the tradeoff report.
+pub(crate) fn median(values: &[f64]) -> f64 {
+    let mut v: Vec<f64> = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 

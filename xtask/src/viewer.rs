@@ -13,7 +13,7 @@
 //! measure; they never run as part of `cargo test` (a short soak does, in
 //! `crates/lucent/tests/window.rs`).
 
-use crate::{cargo, has_program, root, run};
+use crate::{cargo, has_program, median, root, run};
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -150,15 +150,6 @@ fn strings(args: &[&str]) -> Vec<String> {
     args.iter().map(|s| (*s).to_owned()).collect()
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
-}
-
 fn json_list(v: &[f64]) -> String {
     let items: Vec<String> = v.iter().map(|x| format!("{x:.2}")).collect();
     format!("[{}]", items.join(","))
@@ -267,8 +258,12 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
             return Err(format!("too few frames while rotating: {}", ts.len()));
         }
         fps.push((ts.len() - 1) as f64 / (ts[ts.len() - 1] - ts[0]));
-        frame_ms.push(median(steady.iter().filter_map(|l| field(l, "frame_ms")).collect()));
-        scales.push(median(steady.iter().filter_map(|l| field(l, "scale")).collect()));
+        frame_ms.push(median(
+            &steady.iter().filter_map(|l| field(l, "frame_ms")).collect::<Vec<_>>(),
+        ));
+        scales.push(median(
+            &steady.iter().filter_map(|l| field(l, "scale")).collect::<Vec<_>>(),
+        ));
         // Release: the first full-resolution frame read after the button
         // went up (external), and its time since the last camera change as
         // the viewer measured it (internal).
@@ -290,11 +285,11 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
         o.size,
         o.cycles,
         o.rotate_s,
-        median(fps.clone()),
-        median(frame_ms),
-        median(scales.clone()),
-        median(release_ms.clone()),
-        median(release_internal_ms),
+        median(&fps),
+        median(&frame_ms),
+        median(&scales),
+        median(&release_ms),
+        median(&release_internal_ms),
         json_list(&fps),
         json_list(&scales),
         json_list(&release_ms),
@@ -357,8 +352,8 @@ pub fn soak(args: &[String]) -> Result<(), String> {
     let warm = o.seconds as f64 / 10.0;
     let steady: Vec<f64> = rss_kb.iter().filter(|(t, _)| *t >= warm).map(|(_, kb)| *kb).collect();
     let third = steady.len() / 3;
-    let early = median(steady[..third].to_vec());
-    let late = median(steady[steady.len() - third..].to_vec());
+    let early = median(&steady[..third]);
+    let late = median(&steady[steady.len() - third..]);
     let max = steady.iter().copied().fold(0.0, f64::max);
     let growth = late - early;
     let flat = third > 0 && growth < (4096.0f64).max(0.05 * early);
@@ -402,8 +397,8 @@ mod tests {
         assert_eq!(field(line, "R"), Some(3.0));
         assert_eq!(field(line, "O"), Some(1.5));
         assert_eq!(field(line, "missing"), None);
-        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
-        assert!(median(Vec::new()).is_nan());
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        assert!(median(&[]).is_nan());
     }
 
     #[test]

@@ -35,17 +35,7 @@ pub struct PresetResult {
     pub flip: f64,
 }
 
-/// Median of a non-empty list (mean of the middle two for an even length);
-/// NaN when empty.
-pub fn median(values: &[f64]) -> f64 {
-    let mut v: Vec<f64> = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
-}
+pub(crate) use crate::median;
 
 impl PresetResult {
     /// Median of extract + render.
