@@ -17,9 +17,13 @@
 //! sampled here: paths that leave the scene collect it.
 
 use crate::RenderInstance;
-use lucent_geom::{TriMesh, Vec2, Vec3, triangle_normal};
+use lucent_geom::{Ray, TriMesh, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
 use lucent_shading::{Light, Material};
 use std::sync::Arc;
+
+/// Shadow rays stop this fraction short of the point sampled on a light,
+/// so they do not hit the light itself.
+pub const SHADOW_SHORTEN: f32 = 1e-4;
 
 /// Marks an instance without emissive triangles.
 const NONE: u32 = u32::MAX;
@@ -47,6 +51,9 @@ pub struct Emitter {
     pub area: f32,
     /// Emitted radiance.
     pub radiance: Vec3,
+    /// Largest corner coordinate magnitude, which scales the offset of a
+    /// shadow ray's end off the triangle ([`offset_ray_origin_scaled`]).
+    pub magnitude: f32,
 }
 
 /// A point chosen on a light, as seen from a shading point.
@@ -60,6 +67,9 @@ pub struct LightSample {
     pub point: Vec3,
     /// The light's normal at `point` (zero for point and directional lights).
     pub normal: Vec3,
+    /// Largest corner coordinate magnitude of the emitter `point` lies on
+    /// (zero for point and directional lights); see [`LightSample::shadow_ray`].
+    pub magnitude: f32,
     /// Radiance (area light) or irradiance (point, directional) arriving,
     /// before division by `pdf`.
     pub value: Vec3,
@@ -69,6 +79,42 @@ pub struct LightSample {
     /// Whether the light is a point or directional light, which no BSDF
     /// sample can hit (no multiple importance sampling).
     pub delta: bool,
+}
+
+impl LightSample {
+    /// The shadow ray that tests whether this sample is visible from
+    /// `origin`, a shading point already pushed off its surface, and the
+    /// distance the ray may travel.
+    ///
+    /// The ray aims from `origin` itself at the sampled point, itself pushed
+    /// off the emitter towards `origin` by the emitter's own offset, and
+    /// stops [`SHADOW_SHORTEN`] of the way short of it. Aiming along
+    /// [`LightSample::wi`], the direction from the unmoved shading point,
+    /// would miss the point by the origin's offset and could meet the light
+    /// before the end of the ray: offsets scale with the coordinates, so in
+    /// a small scene far from the render origin they are a sizeable part of
+    /// the distance to the light (issue 20: 8% of a Cornell box's light lost
+    /// at scale 1e-3, ten box sizes away). A directional light gives `wi`
+    /// and an infinite distance; `None` when the ray has no direction.
+    #[inline]
+    pub fn shadow_ray(&self, origin: Vec3) -> Option<(Ray, f32)> {
+        if !self.distance.is_finite() {
+            return Some((Ray::new(origin, self.wi), f32::INFINITY));
+        }
+        let target = if self.normal == Vec3::ZERO {
+            self.point
+        } else {
+            let side = if self.normal.dot(origin - self.point) >= 0.0 {
+                self.normal
+            } else {
+                -self.normal
+            };
+            offset_ray_origin_scaled(self.point, side, self.magnitude)
+        };
+        let d = target - origin;
+        let dist = d.length();
+        (dist > 0.0 && dist.is_finite()).then(|| (Ray::new(origin, d / dist), dist * (1.0 - SHADOW_SHORTEN)))
+    }
 }
 
 /// Every light of a scene with the distribution used to pick one.
@@ -133,6 +179,7 @@ impl LightSet {
                     n: if ok { n } else { Vec3::ZERO },
                     area: if ok { area } else { 0.0 },
                     radiance: emission,
+                    magnitude: [a, b, c].iter().fold(0.0f32, |m, q| m.max(q.abs().max_element())),
                 });
             }
         }
@@ -268,6 +315,7 @@ impl LightSet {
                 distance: dist,
                 point,
                 normal: e.n,
+                magnitude: e.magnitude,
                 value: e.radiance,
                 pdf: p * dist2 / (e.area * cos),
                 delta: false,
@@ -280,6 +328,7 @@ impl LightSet {
             distance: s.distance,
             point: from + s.to_light * s.distance.min(f32::MAX),
             normal: Vec3::ZERO,
+            magnitude: 0.0,
             value: s.intensity,
             pdf: p,
             delta: true,

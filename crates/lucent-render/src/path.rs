@@ -36,8 +36,9 @@
 //! Secondary and shadow rays start at the hit point pushed off the surface
 //! along the geometric normal, to the side the new ray leaves into, by an
 //! amount scaled to the triangle's coordinates
-//! ([`offset_ray_origin_scaled`]); shadow rays toward an area light stop
-//! just short of the sampled point.
+//! ([`offset_ray_origin_scaled`]); a shadow ray aims from that origin at
+//! the sampled point on the light, itself pushed off the light, and stops
+//! just short of it ([`LightSample::shadow_ray`](crate::lights::LightSample::shadow_ray)).
 
 use crate::flat::FlatBvh;
 use crate::lights::LightSet;
@@ -48,9 +49,6 @@ use lucent_shading::{Bsdf, Frame};
 
 /// Highest survival probability of Russian roulette.
 const RR_MAX_SURVIVAL: f32 = 0.95;
-/// Shadow rays toward an area light stop this fraction short of the sampled
-/// point, so they do not hit the light itself.
-const SHADOW_SHORTEN: f32 = 1e-4;
 
 /// A path tracer over one scene with fixed settings.
 pub struct PathTracer<'a> {
@@ -177,12 +175,9 @@ impl<'a> PathTracer<'a> {
                     stats.shadow += 1;
                     let side = if ls.wi.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
                     let origin = offset_ray_origin_scaled(hit.p, side, hit.magnitude);
-                    let t_max = if ls.distance.is_finite() {
-                        (ls.point - origin).length() * (1.0 - SHADOW_SHORTEN)
-                    } else {
-                        f32::INFINITY
-                    };
-                    if !self.occluded(&Ray::new(origin, ls.wi), t_max) {
+                    if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
+                        && !self.occluded(&shadow_ray, t_max)
+                    {
                         // Without emitters every light is a delta light.
                         let w = if !EMISSIVE || ls.delta {
                             1.0
