@@ -358,7 +358,7 @@ fn self_hits(scene: &Scene, scale: f32, sphere: bool) -> SelfHits {
     let camera = lucent_render::PinholeCamera::new(&rs.camera, &rs.render_rig(), width, height);
     let to_light = match rs.lights[0] {
         Light::Directional { to_light, .. } => to_light.normalize(),
-        Light::Point { .. } => unreachable!("directional only"),
+        Light::Point { .. } | Light::Spot { .. } => unreachable!("directional only"),
     };
     let mut out = SelfHits::default();
     for row in 0..height {

@@ -30,12 +30,32 @@ pub fn load_texture(source: &dyn AssetSource, path: &Path) -> Result<Texture, As
     texture_from_bytes(&bytes, path)
 }
 
-/// Decodes an image already in memory; `path` is used in messages only.
+/// How an image's colour channels are encoded.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ColorSpace {
+    /// sRGB-encoded colour (photographs, base colour and emission maps):
+    /// decoded to linear by the sRGB transfer function.
+    #[default]
+    Srgb,
+    /// Data stored as it is (normal maps, metallic-roughness maps): texel
+    /// value `v` of `max` reads as `v / max`.
+    Linear,
+}
+
+/// Decodes an image already in memory as sRGB colour; `path` is used in
+/// messages only. See [`texture_from_bytes_as`].
+pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetError> {
+    texture_from_bytes_as(bytes, path, ColorSpace::Srgb)
+}
+
+/// Decodes an image already in memory, its colour channels read in
+/// `space`; an alpha channel (always linear) is kept when some texel is
+/// not fully opaque. `path` is used in messages only.
 ///
 /// The header's dimensions are checked before decoding: at most
 /// [`MAX_TEXTURE_SIDE`] on a side, [`MAX_TEXELS`] in all and
 /// [`MAX_TEXELS_PER_BYTE`] per byte of `bytes`.
-pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetError> {
+pub fn texture_from_bytes_as(bytes: &[u8], path: &Path, space: ColorSpace) -> Result<Texture, AssetError> {
     let format = image::guess_format(bytes)
         .map_err(|_| AssetError::format(path, "not a PNG or JPEG image (unrecognised header)"))?;
     if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg) {
@@ -83,24 +103,57 @@ pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetErr
         }
     };
     let (width, height) = (img.width(), img.height());
-    let texels: Vec<Vec3> = match img {
+    let has_alpha = img.color().has_alpha();
+    let eight_bit = matches!(
+        img,
         DynamicImage::ImageRgb8(_)
-        | DynamicImage::ImageRgba8(_)
-        | DynamicImage::ImageLuma8(_)
-        | DynamicImage::ImageLumaA8(_) => {
-            let lut = srgb_lut();
-            img.to_rgb8()
+            | DynamicImage::ImageRgba8(_)
+            | DynamicImage::ImageLuma8(_)
+            | DynamicImage::ImageLumaA8(_)
+    );
+    let (texels, alpha): (Vec<Vec3>, Option<Vec<f32>>) = if eight_bit {
+        let lut: &[f32; 256] = match space {
+            ColorSpace::Srgb => srgb_lut(),
+            ColorSpace::Linear => linear_lut(),
+        };
+        if has_alpha {
+            let rgba = img.to_rgba8();
+            let texels = rgba
                 .pixels()
                 .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
-                .collect()
+                .collect();
+            let opaque = rgba.pixels().all(|p| p[3] == 255);
+            let alpha = (!opaque).then(|| rgba.pixels().map(|p| f32::from(p[3]) / 255.0).collect());
+            (texels, alpha)
+        } else {
+            let texels = img
+                .to_rgb8()
+                .pixels()
+                .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
+                .collect();
+            (texels, None)
         }
-        _ => img
-            .to_rgb32f()
+    } else {
+        let decode = |x: f32| match space {
+            ColorSpace::Srgb => srgb_to_linear(x),
+            ColorSpace::Linear => x,
+        };
+        let rgba = img.to_rgba32f();
+        let texels = rgba
             .pixels()
-            .map(|p| Vec3::new(srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2])))
-            .collect(),
+            .map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
+            .collect();
+        let opaque = rgba.pixels().all(|p| p[3] >= 1.0);
+        let alpha = (has_alpha && !opaque).then(|| rgba.pixels().map(|p| p[3]).collect());
+        (texels, alpha)
     };
-    Texture::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))
+    let texture = Texture::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))?;
+    match alpha {
+        Some(alpha) => texture
+            .with_alpha(alpha)
+            .map_err(|e| AssetError::format(path, e.to_string())),
+        None => Ok(texture),
+    }
 }
 
 /// Why a texture could not be loaded, naming the case: the file does not
@@ -131,6 +184,11 @@ fn reader(bytes: &[u8], format: ImageFormat) -> ImageReader<Cursor<&[u8]>> {
     limits.max_alloc = Some(MAX_TEXELS * 8);
     reader.limits(limits);
     reader
+}
+
+fn linear_lut() -> &'static [f32; 256] {
+    static LUT: OnceLock<[f32; 256]> = OnceLock::new();
+    LUT.get_or_init(|| std::array::from_fn(|i| i as f32 / 255.0))
 }
 
 fn srgb_lut() -> &'static [f32; 256] {

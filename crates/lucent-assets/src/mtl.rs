@@ -3,15 +3,21 @@
 //!
 //! Fields used: Ka (default Kd), Kd, Ks, Ns, Ke (emission), Ni, d or Tr
 //! (`d < 1` gives transmission `kt = 1 - d`), illum (3, 5 and 7 set the
-//! mirror weight `kr = Ks`), Pr (roughness, clamped to 0..1) and map_Kd with `-s` (uv scale), `-o` (uv
-//! offset) and `-clamp on|off`; other options are read past with a
-//! warning. A missing MTL, material or texture is a warning and shows in
+//! mirror weight `kr = Ks`), Pr (roughness, clamped to 0..1), and the
+//! texture statements map_Kd, map_Ke, norm (or map_Bump/bump, read as a
+//! tangent-space normal map), map_Pr and map_Pm, each with `-s` (uv
+//! scale), `-o` (uv offset) and `-clamp on|off`; other options are read
+//! past with a warning. The PBR extension's `Pm`, `map_Pm` or `map_Pr`
+//! make the material glTF's metallic-roughness model (table in
+//! docs/mesh-files.md): base colour Kd and map_Kd, metallic Pm (times
+//! map_Pm), roughness Pr (times map_Pr; without Pr, the roughness matching
+//! Ns), transmission `1 - d`. A missing MTL, material or texture is a warning and shows in
 //! magenta, never an error; a texture's warning says which case it is (the
 //! file does not exist, is a directory, or is not a usable image).
 
-use crate::{AssetSource, LoadReport, load_texture, normalize_path};
+use crate::{AssetSource, ColorSpace, LoadReport, normalize_path, texture_from_bytes_as};
 use lucent_geom::{Vec2, Vec3};
-use lucent_shading::{Material, Texture, WrapMode};
+use lucent_shading::{Material, MetallicRoughness, Texture, WrapMode};
 use std::collections::{HashMap, HashSet};
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
@@ -101,7 +107,7 @@ pub(crate) fn normalize_mtl(bytes: &[u8]) -> Result<String, (usize, String)> {
                 Some([r, g, b]) => out.push_str(&format!("{keyword} {r} {g} {b}")),
                 _ => return bad("one or three numbers"),
             },
-            "Ns" | "Ni" | "d" | "Tr" | "Pr" => match numbers.as_deref() {
+            "Ns" | "Ni" | "d" | "Tr" | "Pr" | "Pm" => match numbers.as_deref() {
                 Some([_]) => out.push_str(line),
                 _ => return bad("one number"),
             },
@@ -109,7 +115,7 @@ pub(crate) fn normalize_mtl(bytes: &[u8]) -> Result<String, (usize, String)> {
                 [v] if v.parse::<u8>().is_ok() => out.push_str(line),
                 _ => return bad("an integer from 0 to 10"),
             },
-            k if k == "newmtl" || k.starts_with("map_") || k == "bump" => {
+            k if k == "newmtl" || k.starts_with("map_") || k == "bump" || k == "norm" => {
                 if values.is_empty() {
                     return bad("an argument");
                 }
@@ -126,10 +132,9 @@ fn convert_material(
     source: &dyn AssetSource,
     m: &tobj::Material,
     mtl_path: &Path,
-    textures: &mut HashMap<PathBuf, Arc<Texture>>,
+    textures: &mut HashMap<(PathBuf, ColorSpace), Arc<Texture>>,
     report: &mut LoadReport,
 ) -> Material {
-    let mtl_dir = mtl_path.parent().unwrap_or(Path::new(""));
     let v = |c: Option<[f32; 3]>, default: Vec3| c.map_or(default, Vec3::from).max(Vec3::ZERO);
     let kd = v(m.diffuse, Vec3::splat(0.8));
     let ks = v(m.specular, Vec3::ZERO);
@@ -157,31 +162,109 @@ fn convert_material(
         ior: m.optical_density.filter(|n| n.is_finite() && *n > 0.0).unwrap_or(1.0),
         roughness: pr.unwrap_or(0.0),
         emission: v(m.emissive, Vec3::ZERO),
-        diffuse_map: None,
+        ..Material::default()
+    };
+    let mut maps = Maps {
+        source,
+        mtl_path,
+        material: &m.name,
+        textures,
+        report,
     };
     if let Some(spec) = &m.diffuse_texture {
+        material.diffuse_map = maps.load("map_Kd", spec, ColorSpace::Srgb);
+    }
+    let param = |key: &str| m.unknown_param.get(key).map(String::as_str);
+    let normal = param("norm").or(m.normal_texture.as_deref());
+    if let Some(spec) = normal {
+        material.normal_map = maps.load("norm", spec, ColorSpace::Linear);
+    }
+    if let Some(spec) = param("map_Ke") {
+        material.emission_map = maps.load("map_Ke", spec, ColorSpace::Srgb);
+        // A map with no `Ke` to scale would show nothing: it emits as it is.
+        if material.emission == Vec3::ZERO {
+            material.emission = Vec3::ONE;
+        }
+    }
+    // The PBR extension: `Pm` or a metallic or roughness map make the
+    // material glTF's metallic-roughness model.
+    let pm = param("Pm")
+        .and_then(|t| t.parse::<f32>().ok())
+        .map(|x| x.clamp(0.0, 1.0));
+    let (map_pm, map_pr) = (param("map_Pm"), param("map_Pr"));
+    if pm.is_some() || map_pm.is_some() || map_pr.is_some() {
+        // Without `Pr`, the roughness whose GGX lobe is as wide as the
+        // Phong lobe of `Ns` (the inverse of the Whitted mapping).
+        let roughness = pr.unwrap_or_else(|| (2.0 / (material.shininess + 2.0)).sqrt().sqrt().clamp(0.0, 1.0));
+        let params = MetallicRoughness {
+            base_color: kd,
+            metallic: pm.unwrap_or(if map_pm.is_some() { 1.0 } else { 0.0 }),
+            roughness: if map_pr.is_some() && pr.is_none() {
+                1.0
+            } else {
+                roughness
+            },
+            metallic_map: map_pm.and_then(|spec| maps.load("map_Pm", spec, ColorSpace::Linear)),
+            roughness_map: map_pr.and_then(|spec| maps.load("map_Pr", spec, ColorSpace::Linear)),
+            transmission: (1.0 - opacity).clamp(0.0, 1.0),
+        };
+        let pbr = Material::metallic_roughness(params);
+        material = Material {
+            ior: material.ior,
+            emission: material.emission,
+            diffuse_map: material.diffuse_map,
+            normal_map: material.normal_map,
+            emission_map: material.emission_map,
+            ..pbr
+        };
+    }
+    material
+}
+
+/// Loads an MTL statement's texture once per file and colour space; a
+/// texture that cannot be loaded is a warning and a checkerboard.
+struct Maps<'a, 'r> {
+    source: &'a dyn AssetSource,
+    mtl_path: &'a Path,
+    material: &'a str,
+    textures: &'a mut HashMap<(PathBuf, ColorSpace), Arc<Texture>>,
+    report: &'r mut LoadReport,
+}
+
+impl Maps<'_, '_> {
+    fn load(&mut self, statement: &str, spec: &str, space: ColorSpace) -> Option<Arc<Texture>> {
+        let (mtl_path, name) = (self.mtl_path, self.material);
         let map = parse_map(spec);
-        for option in &map.ignored {
-            report.warn(
+        if map.file.is_empty() {
+            self.report.warn(
                 mtl_path,
-                format!(
-                    "material '{}': map_Kd option {option} is not supported and is ignored",
-                    m.name
-                ),
+                format!("material '{name}': {statement} names no file; it is ignored"),
+            );
+            return None;
+        }
+        for option in &map.ignored {
+            self.report.warn(
+                mtl_path,
+                format!("material '{name}': {statement} option {option} is not supported and is ignored"),
             );
         }
+        let mtl_dir = mtl_path.parent().unwrap_or(Path::new(""));
         let tex_path = normalize_path(&mtl_dir.join(&map.file));
-        let base = match textures.get(&tex_path) {
+        let key = (tex_path, space);
+        let base = match self.textures.get(&key) {
             Some(t) => t.clone(),
             None => {
-                let t = match load_texture(source, &tex_path) {
+                let loaded = self
+                    .source
+                    .read(&key.0)
+                    .and_then(|bytes| texture_from_bytes_as(&bytes, &key.0, space));
+                let t = match loaded {
                     Ok(t) => Arc::new(t),
                     Err(e) => {
-                        report.warn(
+                        self.report.warn(
                             mtl_path,
                             format!(
-                                "material '{}': texture '{}': {}; it shows a checkerboard instead",
-                                m.name,
+                                "material '{name}': texture '{}': {}; it shows a checkerboard instead",
                                 map.file,
                                 crate::image_io::texture_problem(&e)
                             ),
@@ -189,24 +272,23 @@ fn convert_material(
                         Arc::new(missing_texture())
                     }
                 };
-                textures.insert(tex_path, t.clone());
+                self.textures.insert(key, t.clone());
                 t
             }
         };
         let wrap = if map.clamp { WrapMode::Clamp } else { WrapMode::Repeat };
-        material.diffuse_map = Some(
-            if map.scale == Vec2::ONE && map.offset == Vec2::ZERO && wrap == base.wrap {
+        Some(
+            if map.scale == Vec2::ONE && map.offset == Vec2::ZERO && wrap == base.wrap && wrap == base.wrap_v {
                 base
             } else {
                 let mut t = (*base).clone();
-                t.wrap = wrap;
+                t.set_wrap(wrap);
                 t.uv_scale = map.scale;
                 t.uv_offset = map.offset;
                 Arc::new(t)
             },
-        );
+        )
     }
-    material
 }
 
 /// A `map_Kd` statement's options and file name.

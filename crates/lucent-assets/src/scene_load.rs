@@ -1,12 +1,17 @@
 //! Scene files: parse, load what they refer to, spawn the entities.
 
-use crate::{AssetError, AssetSource, FileSystem, LoadReport, load_mesh_from, load_texture, normalize_path};
-use lucent_geom::{Aabb, shapes};
+use crate::{
+    AssetError, AssetSource, ColorSpace, FileSystem, LoadReport, load_mesh_from, normalize_path, texture_from_bytes_as,
+};
+use lucent_geom::{Aabb, Vec3, shapes};
+use lucent_scene::Spanned;
 use lucent_scene::components::{Camera, Light, Material, Mesh, MeshRef, OrbitRig, Texture};
 use lucent_scene::hecs::{Entity, World};
 use lucent_scene::{
-    CameraDesc, LightDesc, MaterialDesc, ObjectDesc, RenderSettings, Scene, SceneFile, ShapeKind, world_from_local,
+    CameraDesc, LightDesc, MaterialDesc, ObjectDesc, RenderSettings, Scene, SceneFile, ShapeKind, TextureDesc,
+    world_from_local,
 };
+use lucent_shading::{MetallicRoughness, WrapMode};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -68,7 +73,7 @@ struct Loader<'a> {
     report: LoadReport,
     materials: HashMap<String, Entity>,
     default_material: Option<Entity>,
-    textures: HashMap<PathBuf, Arc<Texture>>,
+    textures: HashMap<(PathBuf, ColorSpace, WrapMode), Arc<Texture>>,
     meshes: HashMap<MeshKey, LoadedParts>,
 }
 
@@ -104,34 +109,17 @@ impl Loader<'_> {
     }
 
     fn material_from(&mut self, d: &MaterialDesc) -> Result<Material, AssetError> {
-        let diffuse_map = match &d.texture {
-            None => None,
-            Some(tex) => {
-                let desc = tex.get_ref();
-                let path = normalize_path(&self.file.resolve(desc.file()));
-                let texture = match self.textures.get(&path) {
-                    Some(t) => t.clone(),
-                    None => {
-                        let mut t = load_texture(self.source, &path).map_err(|e| {
-                            self.file.error_at(
-                                tex.span(),
-                                format!(
-                                    "cannot load texture '{}': {}",
-                                    desc.file(),
-                                    crate::image_io::texture_problem(&e)
-                                ),
-                            )
-                        })?;
-                        t.wrap = desc.wrap();
-                        let t = Arc::new(t);
-                        self.textures.insert(path, t.clone());
-                        t
-                    }
-                };
-                Some(texture)
-            }
+        let diffuse_map = self.texture(d.texture.as_ref(), ColorSpace::Srgb)?;
+        let normal_map = self.texture(d.normal_map.as_ref(), ColorSpace::Linear)?;
+        let emission_map = self.texture(d.emission_texture.as_ref(), ColorSpace::Srgb)?;
+        let mr_map = self.texture(d.metallic_roughness_texture.as_ref(), ColorSpace::Linear)?;
+        // An emission texture alone emits as it is.
+        let emission = if emission_map.is_some() && d.emission.0 == Vec3::ZERO {
+            Vec3::ONE
+        } else {
+            d.emission.0
         };
-        Ok(Material {
+        let base = Material {
             ka: d.ka.unwrap_or(d.kd).0,
             kd: d.kd.0,
             ks: d.ks.0,
@@ -140,9 +128,69 @@ impl Loader<'_> {
             kt: d.kt.0,
             ior: d.ior,
             roughness: d.roughness,
-            emission: d.emission.0,
+            emission,
             diffuse_map,
+            normal_map,
+            normal_scale: d.normal_scale,
+            emission_map,
+            ..Material::default()
+        };
+        if d.metallic.is_none() && mr_map.is_none() && d.transmission.is_none() {
+            return Ok(base);
+        }
+        let pbr = Material::metallic_roughness(MetallicRoughness {
+            base_color: d.kd.0,
+            metallic: d.metallic.unwrap_or(0.0),
+            roughness: d.roughness,
+            metallic_map: mr_map.clone(),
+            roughness_map: mr_map,
+            transmission: d.transmission.unwrap_or(0.0),
+        });
+        Ok(Material {
+            ior: if d.ior == 1.0 { pbr.ior } else { d.ior },
+            ka: pbr.ka,
+            kd: pbr.kd,
+            ks: pbr.ks,
+            shininess: pbr.shininess,
+            kr: pbr.kr,
+            kt: pbr.kt,
+            pbr: pbr.pbr,
+            ..base
         })
+    }
+
+    /// The texture a material key names, loaded once per file and colour
+    /// space; an error is located at the key's value.
+    fn texture(
+        &mut self,
+        tex: Option<&Spanned<TextureDesc>>,
+        space: ColorSpace,
+    ) -> Result<Option<Arc<Texture>>, AssetError> {
+        let Some(tex) = tex else { return Ok(None) };
+        let desc = tex.get_ref();
+        let path = normalize_path(&self.file.resolve(desc.file()));
+        let key = (path, space, desc.wrap());
+        if let Some(t) = self.textures.get(&key) {
+            return Ok(Some(t.clone()));
+        }
+        let loaded = self
+            .source
+            .read(&key.0)
+            .and_then(|bytes| texture_from_bytes_as(&bytes, &key.0, space));
+        let mut t = loaded.map_err(|e| {
+            self.file.error_at(
+                tex.span(),
+                format!(
+                    "cannot load texture '{}': {}",
+                    desc.file(),
+                    crate::image_io::texture_problem(&e)
+                ),
+            )
+        })?;
+        t.set_wrap(desc.wrap());
+        let t = Arc::new(t);
+        self.textures.insert(key, t.clone());
+        Ok(Some(t))
     }
 
     fn default_material(&mut self) -> Entity {

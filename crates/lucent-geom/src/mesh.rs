@@ -1,7 +1,7 @@
 //! Indexed triangle meshes whose indices are checked once, at construction.
 
 use crate::{Aabb, triangle_normal};
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use std::fmt;
 
 /// An indexed triangle mesh with optional per-vertex attributes.
@@ -17,6 +17,7 @@ pub struct TriMesh {
     normals: Option<Vec<Vec3>>,
     uvs: Option<Vec<Vec2>>,
     colors: Option<Vec<Vec3>>,
+    tangents: Option<Vec<Vec4>>,
 }
 
 /// Why a [`TriMesh`] could not be built.
@@ -33,7 +34,7 @@ pub enum MeshError {
     },
     /// An attribute array does not have one entry per vertex.
     AttributeLength {
-        /// Which attribute ("normals", "uvs", "colors").
+        /// Which attribute ("normals", "uvs", "colors", "tangents").
         attribute: &'static str,
         /// Entries given.
         len: usize,
@@ -125,6 +126,15 @@ impl TriMesh {
         Ok(self)
     }
 
+    /// Adds per-vertex tangents for normal mapping: `xyz` the unit tangent
+    /// (the direction of increasing `u`), `w` the handedness (+1 or -1), so
+    /// the bitangent is `w * cross(normal, tangent)`, as glTF stores them.
+    pub fn with_tangents(mut self, tangents: Vec<Vec4>) -> Result<Self, MeshError> {
+        self.check_len("tangents", tangents.len())?;
+        self.tangents = Some(tangents);
+        Ok(self)
+    }
+
     /// Adds area- and angle-weighted smooth normals when the mesh has none.
     pub fn with_smooth_normals_if_missing(mut self) -> Self {
         if self.normals.is_none() {
@@ -156,6 +166,11 @@ impl TriMesh {
     /// Per-vertex colours, if the mesh has them.
     pub fn colors(&self) -> Option<&[Vec3]> {
         self.colors.as_deref()
+    }
+
+    /// Per-vertex tangents with handedness in `w`, if the mesh has them.
+    pub fn tangents(&self) -> Option<&[Vec4]> {
+        self.tangents.as_deref()
     }
 
     /// Number of vertices.
@@ -284,7 +299,12 @@ mod tests {
     #[test]
     fn stores_only_attributes_given() {
         let m = quad();
-        assert!(m.normals().is_none() && m.uvs().is_none() && m.colors().is_none());
+        assert!(m.normals().is_none() && m.uvs().is_none() && m.colors().is_none() && m.tangents().is_none());
+        let bad = quad().with_tangents(vec![Vec4::X; 2]).map(|_| ());
+        assert_eq!(
+            bad.map_err(|e| e.to_string()),
+            Err("2 tangents given for 4 vertices".to_string())
+        );
         let m = m.with_smooth_normals_if_missing();
         assert_eq!(m.normals(), Some(&[Vec3::Z; 4][..]));
     }

@@ -86,7 +86,7 @@ pub struct SceneFeatures {
     pub textured: bool,
     /// Some instance's material emits: emissive triangles are area lights.
     pub emissive: bool,
-    /// The scene has point lights.
+    /// The scene has point (or spot) lights.
     pub point_lights: bool,
     /// The scene has directional lights.
     pub directional_lights: bool,
@@ -142,7 +142,9 @@ impl SceneFeatures {
         lights: &[Light],
     ) -> Self {
         let mut f = SceneFeatures {
-            point_lights: lights.iter().any(|l| matches!(l, Light::Point { .. })),
+            point_lights: lights
+                .iter()
+                .any(|l| matches!(l, Light::Point { .. } | Light::Spot { .. })),
             directional_lights: lights.iter().any(|l| matches!(l, Light::Directional { .. })),
             ..SceneFeatures::default()
         };
@@ -464,13 +466,7 @@ pub fn render_origin(rig: &OrbitRig) -> Vec3 {
 
 /// `light` moved by `-origin`.
 fn render_space_light(light: Light, origin: Vec3) -> Light {
-    match light {
-        Light::Point { position, intensity } => Light::Point {
-            position: position - origin,
-            intensity,
-        },
-        directional @ Light::Directional { .. } => directional,
-    }
+    light.translated(-origin)
 }
 
 /// The index of `entity`'s item in `items`, fetching and appending it the

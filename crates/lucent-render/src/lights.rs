@@ -11,7 +11,8 @@
 //! A light is picked from one discrete distribution over all lights, with
 //! probability proportional to an estimate of its power: `pi * area *
 //! luminance(radiance)` for a triangle, `4 pi * luminance(intensity)` for a
-//! point light and `pi * r^2 * luminance(irradiance)` for a directional light,
+//! point light, `2 pi (1 - cos outer) * luminance(intensity)` for a spot
+//! light and `pi * r^2 * luminance(irradiance)` for a directional light,
 //! `r` being the radius of the scene's bounding sphere. A point is then drawn
 //! uniformly over the chosen triangle's area. The constant background is not
 //! sampled here: paths that leave the scene collect it.
@@ -192,9 +193,10 @@ impl LightSet {
         let power = emitters
             .iter()
             .map(|e| std::f32::consts::PI * e.area * lum(e.radiance))
-            .chain(lights.iter().map(|l| match *l {
-                Light::Point { intensity, .. } => 4.0 * std::f32::consts::PI * lum(intensity),
-                Light::Directional { intensity, .. } => std::f32::consts::PI * r * r * lum(intensity).max(0.0),
+            .chain(lights.iter().map(|l| match (l.power(), *l) {
+                (Some(power), _) => lum(power),
+                (None, Light::Directional { intensity, .. }) => std::f32::consts::PI * r * r * lum(intensity).max(0.0),
+                (None, _) => 0.0,
             }))
             .map(|p| if p.is_finite() { p as f64 } else { 0.0 })
             .collect::<Vec<f64>>();

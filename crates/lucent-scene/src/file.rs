@@ -308,8 +308,32 @@ pub struct MaterialDesc {
     /// Emitted radiance.
     #[serde(default)]
     pub emission: Color,
-    /// Diffuse texture.
+    /// Diffuse texture (the base colour texture of a metallic-roughness
+    /// material).
     pub texture: Option<Spanned<TextureDesc>>,
+    /// Metalness, 0 to 1: when given (or `metallic_roughness_texture` or
+    /// `transmission` is; metallic is then 0), the material is glTF's
+    /// metallic-roughness model, with `kd` as the base colour, `texture`
+    /// as the base colour texture and `roughness` as its roughness, and
+    /// the report's terms are derived from it for the Whitted integrator.
+    #[serde(default, deserialize_with = "unit_opt")]
+    pub metallic: Option<f32>,
+    /// A glTF-style texture whose blue channel multiplies `metallic` and
+    /// green channel `roughness` (linear).
+    pub metallic_roughness_texture: Option<Spanned<TextureDesc>>,
+    /// Share of a metallic-roughness material's dielectric that
+    /// transmits, 0 to 1 (`KHR_materials_transmission`).
+    #[serde(default, deserialize_with = "unit_opt")]
+    pub transmission: Option<f32>,
+    /// Tangent-space normal map (linear RGB, OpenGL convention: green
+    /// along the bitangent), for any material.
+    pub normal_map: Option<Spanned<TextureDesc>>,
+    /// Scale of the normal map's x and y (default 1).
+    #[serde(default = "MaterialDesc::default_normal_scale", deserialize_with = "finite")]
+    pub normal_scale: f32,
+    /// Texture multiplying `emission` (sRGB); `emission` defaults to 1
+    /// when only the texture is given.
+    pub emission_texture: Option<Spanned<TextureDesc>>,
 }
 
 impl MaterialDesc {
@@ -320,6 +344,9 @@ impl MaterialDesc {
         32.0
     }
     fn default_ior() -> f32 {
+        1.0
+    }
+    fn default_normal_scale() -> f32 {
         1.0
     }
 }
@@ -337,7 +364,7 @@ pub enum TextureDesc {
     Table {
         /// Image file, relative to the scene file.
         file: String,
-        /// `"repeat"` (default) or `"clamp"`.
+        /// `"repeat"` (default), `"clamp"` or `"mirror"`.
         #[serde(default)]
         wrap: WrapDesc,
     },
@@ -357,6 +384,9 @@ impl TextureDesc {
             TextureDesc::Table {
                 wrap: WrapDesc::Clamp, ..
             } => lucent_shading::WrapMode::Clamp,
+            TextureDesc::Table {
+                wrap: WrapDesc::Mirror, ..
+            } => lucent_shading::WrapMode::MirroredRepeat,
             _ => lucent_shading::WrapMode::Repeat,
         }
     }
@@ -371,6 +401,8 @@ pub enum WrapDesc {
     Repeat,
     /// Repeat edge texels.
     Clamp,
+    /// Tile, every other tile mirrored.
+    Mirror,
 }
 
 /// Procedural shapes an object can use instead of a mesh file.
@@ -536,6 +568,10 @@ fn subdivisions<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error
 }
 
 fn unit_interval<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    checked(d, |v: f32| (0.0..=1.0).contains(&v), "must be between 0 and 1").map(Some)
+}
+
+fn unit_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
     checked(d, |v: f32| (0.0..=1.0).contains(&v), "must be between 0 and 1").map(Some)
 }
 

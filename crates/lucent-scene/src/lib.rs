@@ -46,4 +46,6 @@ pub use file::{
 };
 pub use hecs;
 pub use scene::{EntityCounts, Environment, Integrator, RenderSettings, Scene, Shading};
+/// A value with its byte range in the scene file's text (from toml).
+pub use toml::Spanned;
 pub use transform::world_from_local;

@@ -3,10 +3,12 @@
 //!
 //! - [`Material`]: the report's MTL-style parameters (Ka, Kd, Ks, n, plus
 //!   mirror and transmission weights, index of refraction, emission and a
-//!   diffuse texture).
+//!   diffuse texture), and optionally glTF's metallic-roughness model
+//!   ([`MetallicRoughness`]) with normal, emission and metallic-roughness
+//!   maps and an alpha test ([`AlphaMode`]).
 //! - [`Texture`]: linear-RGB texels with bilinear lookup (S6) and wrap modes.
-//! - [`Light`]: directional (the report's light from straight above) and
-//!   point lights.
+//! - [`Light`]: directional (the report's light from straight above),
+//!   point and spot lights.
 //! - [`phong`]: the report's Phong model (S9) split into per-light terms so
 //!   that it can be evaluated at vertices (Gouraud, S10) or per pixel.
 //! - [`color`]: the sRGB transfer function, both ways.
@@ -40,5 +42,5 @@ mod texture;
 pub use bsdf::{Bsdf, BsdfSample, Frame};
 pub use light::{Light, LightSample};
 pub use lucent_geom::{Vec2, Vec3};
-pub use material::Material;
+pub use material::{AlphaMode, Material, MetallicRoughness};
 pub use texture::{Texture, TextureError, WrapMode};

@@ -1,8 +1,90 @@
-//! The material parameter set shared by every integrator.
+//! The material parameter set shared by every integrator: the report's
+//! Phong-style terms, and optionally glTF's metallic-roughness model with
+//! its texture maps, normal map, emission map and alpha.
 
 use crate::{Bsdf, Texture};
 use lucent_geom::{Vec2, Vec3};
 use std::sync::Arc;
+
+/// How a material's alpha (base colour alpha times `Material::alpha`) is
+/// used.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum AlphaMode {
+    /// Alpha is ignored: the surface is opaque (glTF's default).
+    #[default]
+    Opaque,
+    /// An alpha test: where alpha is below the cutoff the surface is not
+    /// there at all, for camera, bounce and shadow rays alike (glTF's
+    /// `MASK` with `alphaCutoff`, 0.5 by default).
+    Mask {
+        /// Alpha below this is cut out.
+        cutoff: f32,
+    },
+}
+
+/// glTF's metallic-roughness parameters (specification, section 3.9 and
+/// appendix B). The base colour texture is [`Material::diffuse_map`] and
+/// the index of refraction is [`Material::ior`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MetallicRoughness {
+    /// Base colour factor (linear RGB).
+    pub base_color: Vec3,
+    /// Metalness factor, 0 (dielectric) to 1 (metal).
+    pub metallic: f32,
+    /// Perceptual roughness factor, 0 (smooth) to 1; GGX `alpha` is its
+    /// square.
+    pub roughness: f32,
+    /// Texture whose blue channel multiplies `metallic` (linear, not sRGB;
+    /// glTF packs metallic and roughness into one texture, which is then
+    /// both this and `roughness_map`).
+    pub metallic_map: Option<Arc<Texture>>,
+    /// Texture whose green channel multiplies `roughness` (linear).
+    pub roughness_map: Option<Arc<Texture>>,
+    /// `KHR_materials_transmission`: the share of the dielectric that
+    /// transmits, 0 to 1.
+    pub transmission: f32,
+}
+
+impl Default for MetallicRoughness {
+    /// glTF's defaults: white, fully metallic, fully rough.
+    fn default() -> Self {
+        Self {
+            base_color: Vec3::ONE,
+            metallic: 1.0,
+            roughness: 1.0,
+            metallic_map: None,
+            roughness_map: None,
+            transmission: 0.0,
+        }
+    }
+}
+
+impl MetallicRoughness {
+    /// The report's terms that approximate this material for the Whitted
+    /// integrator, as `(ka = kd, ks, shininess, kr, kt)`:
+    ///
+    /// | term | from |
+    /// | --- | --- |
+    /// | `ka`, `kd` | `base (1 - metallic) (1 - transmission)` |
+    /// | `ks` | `F0 = mix(0.04-ish dielectric F0, base, metallic)` |
+    /// | `shininess` | `2 / alpha^2 - 2` (the Phong exponent whose lobe is as wide as GGX's), 1 to 10 000 |
+    /// | `kr` | `F0` when `roughness < 0.25` (a sharp mirror), else 0 |
+    /// | `kt` | `(1 - metallic) transmission` |
+    ///
+    /// Texture maps other than the base colour, and Fresnel's rise at
+    /// grazing angles, are not represented.
+    pub fn phong_approximation(&self, ior: f32) -> (Vec3, Vec3, f32, Vec3, Vec3) {
+        let unit = |x: f32| if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+        let (m, r, t) = (unit(self.metallic), unit(self.roughness), unit(self.transmission));
+        let base = self.base_color.max(Vec3::ZERO).min(Vec3::ONE);
+        let f0 = Vec3::splat(crate::bsdf::dielectric_f0(ior)).lerp(base, m);
+        let kd = base * (1.0 - m) * (1.0 - t);
+        let alpha = (r * r).max(1e-2);
+        let shininess = (2.0 / (alpha * alpha) - 2.0).clamp(1.0, 1e4);
+        let kr = if r < 0.25 { f0 } else { Vec3::ZERO };
+        (kd, f0, shininess, kr, Vec3::splat((1.0 - m) * t))
+    }
+}
 
 /// Surface parameters in the report's terms (an OBJ/MTL-like set).
 ///
@@ -35,8 +117,30 @@ pub struct Material {
     pub roughness: f32,
     /// Emitted radiance (MTL `Ke`), added unshadowed.
     pub emission: Vec3,
-    /// Texture multiplying Ka and Kd (MTL `map_Kd`).
+    /// Texture multiplying Ka and Kd (MTL `map_Kd`), or the base colour of
+    /// a metallic-roughness material (sRGB decoded; its alpha channel is
+    /// the base alpha).
     pub diffuse_map: Option<Arc<Texture>>,
+    /// glTF's metallic-roughness model: when set, the path tracer uses
+    /// [`Bsdf::metallic_roughness`] and the report's terms above hold the
+    /// Whitted approximation ([`MetallicRoughness::phong_approximation`]).
+    pub pbr: Option<MetallicRoughness>,
+    /// Tangent-space normal map (linear RGB, `n = 2 c - 1`, green along
+    /// the bitangent, OpenGL and glTF's convention).
+    pub normal_map: Option<Arc<Texture>>,
+    /// Scale of the normal map's x and y (glTF's `normalTexture.scale`).
+    pub normal_scale: f32,
+    /// Texture multiplying `emission` (sRGB decoded).
+    pub emission_map: Option<Arc<Texture>>,
+    /// Opacity factor multiplying the base colour texture's alpha (glTF's
+    /// base colour factor alpha); only [`AlphaMode::Mask`] uses it.
+    pub alpha: f32,
+    /// How alpha is used.
+    pub alpha_mode: AlphaMode,
+    /// glTF's `doubleSided`: the surface emits from both sides (otherwise
+    /// only from the side its normals face). Both sides of every surface
+    /// are shaded either way.
+    pub double_sided: bool,
 }
 
 impl Default for Material {
@@ -53,6 +157,13 @@ impl Default for Material {
             roughness: 0.0,
             emission: Vec3::ZERO,
             diffuse_map: None,
+            pbr: None,
+            normal_map: None,
+            normal_scale: 1.0,
+            emission_map: None,
+            alpha: 1.0,
+            alpha_mode: AlphaMode::Opaque,
+            double_sided: false,
         }
     }
 }
@@ -125,6 +236,127 @@ impl Material {
             _ => Vec3::ONE,
         }
     }
+
+    /// Whether anything about the surface varies with texture coordinates.
+    pub fn is_textured(&self) -> bool {
+        self.diffuse_map.is_some()
+            || self.normal_map.is_some()
+            || self.emission_map.is_some()
+            || self
+                .pbr
+                .as_ref()
+                .is_some_and(|p| p.metallic_map.is_some() || p.roughness_map.is_some())
+    }
+
+    /// Whether some hit on this material may be cut out by its alpha test.
+    pub fn is_masked(&self) -> bool {
+        matches!(self.alpha_mode, AlphaMode::Mask { .. })
+    }
+
+    /// Whether the alpha test removes the surface at `uv`: alpha (the
+    /// factor times the base colour texture's alpha) below the cutoff.
+    #[inline]
+    pub fn cut_out(&self, uv: Option<Vec2>) -> bool {
+        let AlphaMode::Mask { cutoff } = self.alpha_mode else {
+            return false;
+        };
+        let texture_alpha = match (&self.diffuse_map, uv) {
+            (Some(tex), Some(uv)) => tex.sample_alpha(uv),
+            _ => 1.0,
+        };
+        // NaN alpha keeps the surface.
+        self.alpha * texture_alpha < cutoff
+    }
+
+    /// Emitted radiance at `uv`: `emission` times the emission map.
+    #[inline]
+    pub fn emission_at(&self, uv: Option<Vec2>) -> Vec3 {
+        match (&self.emission_map, uv) {
+            (Some(tex), Some(uv)) => self.emission * tex.sample_bilinear(uv),
+            _ => self.emission,
+        }
+    }
+
+    /// The tangent-space normal at `uv` from the normal map (scaled in x
+    /// and y by `normal_scale`, normalised), or `None` without a map, UVs
+    /// or a usable value.
+    #[inline]
+    pub fn tangent_space_normal(&self, uv: Option<Vec2>) -> Option<Vec3> {
+        let (tex, uv) = (self.normal_map.as_ref()?, uv?);
+        let c = tex.sample_bilinear(uv) * 2.0 - Vec3::ONE;
+        let n = Vec3::new(c.x * self.normal_scale, c.y * self.normal_scale, c.z);
+        n.try_normalize()
+    }
+
+    /// The BSDF at a hit with texture coordinates `uv` and vertex colour
+    /// `color`: [`Material::bsdf`] with the diffuse texture and vertex
+    /// colour as tint, or for a metallic-roughness material
+    /// [`Bsdf::metallic_roughness`] with the base colour factor times the
+    /// texture and vertex colour, metallic times the blue channel of its
+    /// texture and roughness times the green channel of its own.
+    #[inline]
+    pub fn bsdf_at(&self, uv: Option<Vec2>, color: Option<Vec3>) -> Bsdf {
+        let mut tint = self.diffuse_tint(uv);
+        if let Some(c) = color {
+            tint *= c;
+        }
+        match &self.pbr {
+            None => self.bsdf(tint),
+            Some(p) => {
+                let (mut metallic, mut roughness) = (p.metallic, p.roughness);
+                if let Some(uv) = uv {
+                    match (&p.metallic_map, &p.roughness_map) {
+                        (Some(m), Some(r)) if Arc::ptr_eq(m, r) => {
+                            let c = m.sample_bilinear(uv);
+                            metallic *= c.z;
+                            roughness *= c.y;
+                        }
+                        (m, r) => {
+                            if let Some(m) = m {
+                                metallic *= m.sample_bilinear(uv).z;
+                            }
+                            if let Some(r) = r {
+                                roughness *= r.sample_bilinear(uv).y;
+                            }
+                        }
+                    }
+                }
+                Bsdf::metallic_roughness(p.base_color * tint, metallic, roughness, p.transmission, self.ior)
+            }
+        }
+    }
+
+    /// A metallic-roughness material with its Whitted approximation filled
+    /// in (see [`MetallicRoughness::phong_approximation`]); `ior` 1.5 and
+    /// everything else at its default.
+    ///
+    /// ```
+    /// use lucent_shading::{Material, MetallicRoughness, Vec3};
+    /// let m = Material::metallic_roughness(MetallicRoughness {
+    ///     base_color: Vec3::new(0.8, 0.1, 0.1),
+    ///     metallic: 0.0,
+    ///     roughness: 0.5,
+    ///     ..MetallicRoughness::default()
+    /// });
+    /// assert_eq!(m.kd, Vec3::new(0.8, 0.1, 0.1));
+    /// assert!(m.pbr.is_some() && m.kr == Vec3::ZERO);
+    /// ```
+    pub fn metallic_roughness(params: MetallicRoughness) -> Material {
+        let ior = 1.5;
+        let (kd, ks, shininess, kr, kt) = params.phong_approximation(ior);
+        Material {
+            ka: kd,
+            kd,
+            ks,
+            shininess,
+            kr,
+            kt,
+            ior,
+            roughness: params.roughness,
+            pbr: Some(params),
+            ..Material::default()
+        }
+    }
 }
 
 #[cfg(test)]
@@ -142,5 +374,75 @@ mod tests {
         assert_eq!(m.diffuse_tint(Some(Vec2::ZERO)), Vec3::new(0.5, 0.25, 1.0));
         assert_eq!(Material::default().diffuse_tint(Some(Vec2::ZERO)), Vec3::ONE);
         assert!(!m.is_transmissive() && !m.is_reflective());
+    }
+
+    #[test]
+    fn alpha_test_emission_map_and_normal_map() {
+        let tex = |rgb: Vec3, alpha: f32| {
+            Texture::new(1, 1, vec![rgb])
+                .and_then(|t| t.with_alpha(vec![alpha]))
+                .map(Arc::new)
+                .ok()
+        };
+        let mut m = Material {
+            diffuse_map: tex(Vec3::ONE, 0.4),
+            alpha_mode: AlphaMode::Mask { cutoff: 0.5 },
+            ..Material::default()
+        };
+        let uv = Some(Vec2::splat(0.5));
+        assert!(m.is_masked() && m.cut_out(uv) && !m.cut_out(None));
+        m.alpha_mode = AlphaMode::Opaque;
+        assert!(!m.cut_out(uv));
+        m.alpha_mode = AlphaMode::Mask { cutoff: 0.3 };
+        assert!(!m.cut_out(uv));
+        // Emission times its map.
+        let lamp = Material {
+            emission: Vec3::splat(2.0),
+            emission_map: tex(Vec3::new(1.0, 0.5, 0.0), 1.0),
+            ..Material::default()
+        };
+        assert_eq!(lamp.emission_at(uv), Vec3::new(2.0, 1.0, 0.0));
+        assert_eq!(lamp.emission_at(None), Vec3::splat(2.0));
+        // A flat normal map texel (0.5, 0.5, 1) is the unperturbed normal;
+        // the scale tilts x and y.
+        let bumpy = Material {
+            normal_map: tex(Vec3::new(1.0, 0.5, 1.0), 1.0),
+            normal_scale: 0.5,
+            ..Material::default()
+        };
+        let n = bumpy.tangent_space_normal(uv).unwrap_or(Vec3::ZERO);
+        assert!(n.abs_diff_eq(Vec3::new(0.5, 0.0, 1.0).normalize(), 1e-6), "{n}");
+        assert!(bumpy.is_textured() && !Material::default().is_textured());
+    }
+
+    #[test]
+    fn metallic_roughness_reads_blue_and_green_and_maps_to_phong() {
+        let mr = Texture::new(1, 1, vec![Vec3::new(0.0, 0.5, 0.0)]).map(Arc::new).ok();
+        let m = Material::metallic_roughness(MetallicRoughness {
+            base_color: Vec3::splat(0.5),
+            metallic: 1.0,
+            roughness: 1.0,
+            metallic_map: mr.clone(),
+            roughness_map: mr,
+            transmission: 0.0,
+        });
+        // Blue 0 makes it a dielectric, green 0.5 halves the roughness.
+        let textured = m.bsdf_at(Some(Vec2::ZERO), None);
+        let expected = Bsdf::metallic_roughness(Vec3::splat(0.5), 0.0, 0.5, 0.0, 1.5);
+        assert_eq!(textured, expected);
+        // Without UVs the factors apply as they are: a rough metal, whose
+        // Whitted terms have no diffuse and a coloured highlight.
+        assert_eq!(
+            m.bsdf_at(None, None),
+            Bsdf::metallic_roughness(Vec3::splat(0.5), 1.0, 1.0, 0.0, 1.5)
+        );
+        assert_eq!((m.kd, m.ks, m.kr), (Vec3::ZERO, Vec3::splat(0.5), Vec3::ZERO));
+        let smooth = MetallicRoughness {
+            roughness: 0.1,
+            metallic: 0.0,
+            ..MetallicRoughness::default()
+        };
+        let (kd, ks, n, kr, _) = smooth.phong_approximation(1.5);
+        assert!(kd == Vec3::ONE && (ks.x - 0.04).abs() < 1e-6 && kr == ks && n > 1000.0);
     }
 }

@@ -1,16 +1,21 @@
-//! Textures: linear-RGB texels with bilinear filtering (the report's S6).
+//! Textures: linear-RGB texels (plus an optional alpha channel) with
+//! bilinear filtering (the report's S6), per-axis wrap modes and a
+//! texture-coordinate transform (MTL `-s`/`-o`, glTF
+//! `KHR_texture_transform`).
 
-use lucent_geom::{Vec2, Vec3};
+use lucent_geom::{Vec2, Vec3, Vec4};
 use std::fmt;
 
 /// What happens to texture coordinates outside `[0, 1]`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum WrapMode {
     /// Tile the image (OBJ's default).
     #[default]
     Repeat,
     /// Repeat the edge texels.
     Clamp,
+    /// Tile the image, every other tile mirrored (glTF's `MIRRORED_REPEAT`).
+    MirroredRepeat,
 }
 
 /// A texture in linear RGB, row 0 at the top of the image.
@@ -18,17 +23,28 @@ pub enum WrapMode {
 /// Texture coordinates follow OBJ/OpenGL: `(0, 0)` is the bottom-left corner
 /// of the image and `v` grows upwards, so `v = 1` is row 0. Texel `(x, y)`
 /// has its centre at `u = (x + 0.5) / width`, `v = 1 - (y + 0.5) / height`.
+///
+/// The lookup reads the texture coordinates `uv` transformed as
+/// `R(uv_rotation) (uv * uv_scale) + uv_offset`, `R` a counter-clockwise
+/// rotation in the `(u, v)` plane, and wraps `u` by `wrap` and `v` by
+/// `wrap_v`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
     width: u32,
     height: u32,
     texels: Vec<Vec3>,
-    /// How coordinates outside the unit square are mapped.
+    /// Linear alpha per texel, when the image has an alpha channel.
+    alpha: Option<Vec<f32>>,
+    /// How `u` outside `[0, 1]` is mapped (and `v` too, unless `wrap_v`
+    /// says otherwise; [`Texture::set_wrap`] sets both).
     pub wrap: WrapMode,
+    /// How `v` outside `[0, 1]` is mapped.
+    pub wrap_v: WrapMode,
     /// Scale applied to texture coordinates before lookup (MTL `-s`).
     pub uv_scale: Vec2,
-    /// Offset added after scaling (MTL `-o`): the lookup reads
-    /// `uv * uv_scale + uv_offset`.
+    /// Counter-clockwise rotation in radians applied after scaling.
+    pub uv_rotation: f32,
+    /// Offset added last (MTL `-o`).
     pub uv_offset: Vec2,
 }
 
@@ -73,10 +89,39 @@ impl Texture {
             width,
             height,
             texels,
+            alpha: None,
             wrap: WrapMode::default(),
+            wrap_v: WrapMode::default(),
             uv_scale: Vec2::ONE,
+            uv_rotation: 0.0,
             uv_offset: Vec2::ZERO,
         })
+    }
+
+    /// This texture with a linear alpha channel, one value per texel in the
+    /// same order; fails (giving the texture back unchanged inside the
+    /// error) unless there is exactly one per texel.
+    pub fn with_alpha(mut self, alpha: Vec<f32>) -> Result<Self, TextureError> {
+        if alpha.len() != self.texels.len() {
+            return Err(TextureError {
+                width: self.width,
+                height: self.height,
+                n_texels: alpha.len(),
+            });
+        }
+        self.alpha = Some(alpha);
+        Ok(self)
+    }
+
+    /// Whether the texture has an alpha channel.
+    pub fn has_alpha(&self) -> bool {
+        self.alpha.is_some()
+    }
+
+    /// Sets the wrap mode of both axes.
+    pub fn set_wrap(&mut self, mode: WrapMode) {
+        self.wrap = mode;
+        self.wrap_v = mode;
     }
 
     /// A 1x1 texture of one colour (cannot fail).
@@ -85,8 +130,11 @@ impl Texture {
             width: 1,
             height: 1,
             texels: vec![color],
+            alpha: None,
             wrap: WrapMode::default(),
+            wrap_v: WrapMode::default(),
             uv_scale: Vec2::ONE,
+            uv_rotation: 0.0,
             uv_offset: Vec2::ZERO,
         }
     }
@@ -101,20 +149,27 @@ impl Texture {
         self.height
     }
 
+    /// The index of the texel at column `x`, row `y` (row 0 at the top),
+    /// after wrapping.
+    #[inline]
+    fn index(&self, x: i64, y: i64) -> usize {
+        let x = wrap(x, self.width, self.wrap);
+        let y = wrap(y, self.height, self.wrap_v);
+        y * self.width as usize + x
+    }
+
     /// The texel at column `x`, row `y` (row 0 at the top), after wrapping.
     #[inline]
     pub fn texel(&self, x: i64, y: i64) -> Vec3 {
-        let x = wrap(x, self.width, self.wrap);
-        let y = wrap(y, self.height, self.wrap);
-        self.texels[y * self.width as usize + x]
+        self.texels[self.index(x, y)]
     }
 
-    /// Bilinear interpolation of the four texels around
-    /// `uv * uv_scale + uv_offset` (S6).
-    /// Non-finite coordinates read as 0.
+    /// The four texels around the transformed `uv` and the bilinear
+    /// weights, as texel indices `[top left, top right, bottom left,
+    /// bottom right]` and fractions `(fx, fy)`.
     #[inline]
-    pub fn sample_bilinear(&self, uv: Vec2) -> Vec3 {
-        let uv = uv * self.uv_scale + self.uv_offset;
+    fn footprint(&self, uv: Vec2) -> ([usize; 4], f32, f32) {
+        let uv = self.transform(uv);
         let u = if uv.x.is_finite() { uv.x } else { 0.0 };
         let v = if uv.y.is_finite() { uv.y } else { 0.0 };
         // Continuous texel coordinates with texel centres at integers.
@@ -124,11 +179,66 @@ impl Texture {
         let (fx, fy) = (x - x0, y - y0);
         // `as i64` saturates, so huge coordinates cannot overflow below.
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = self.texel(x0, y0).lerp(self.texel(x0.saturating_add(1), y0), fx);
-        let bottom = self
-            .texel(x0, y0.saturating_add(1))
-            .lerp(self.texel(x0.saturating_add(1), y0.saturating_add(1)), fx);
+        let (x1, y1) = (x0.saturating_add(1), y0.saturating_add(1));
+        (
+            [
+                self.index(x0, y0),
+                self.index(x1, y0),
+                self.index(x0, y1),
+                self.index(x1, y1),
+            ],
+            fx,
+            fy,
+        )
+    }
+
+    /// The texture coordinates the lookup of `uv` reads.
+    #[inline]
+    pub fn transform(&self, uv: Vec2) -> Vec2 {
+        let s = uv * self.uv_scale;
+        let s = if self.uv_rotation == 0.0 {
+            s
+        } else {
+            let (sin, cos) = self.uv_rotation.sin_cos();
+            Vec2::new(cos * s.x - sin * s.y, sin * s.x + cos * s.y)
+        };
+        s + self.uv_offset
+    }
+
+    /// Bilinear interpolation of the four texels around the transformed
+    /// `uv` (S6). Non-finite coordinates read as 0.
+    #[inline]
+    pub fn sample_bilinear(&self, uv: Vec2) -> Vec3 {
+        let ([a, b, c, d], fx, fy) = self.footprint(uv);
+        let t = &self.texels;
+        let top = t[a].lerp(t[b], fx);
+        let bottom = t[c].lerp(t[d], fx);
         top.lerp(bottom, fy)
+    }
+
+    /// Bilinear colour and alpha (1 without an alpha channel) at `uv`.
+    #[inline]
+    pub fn sample_rgba(&self, uv: Vec2) -> Vec4 {
+        let ([a, b, c, d], fx, fy) = self.footprint(uv);
+        let t = &self.texels;
+        let rgb = t[a].lerp(t[b], fx).lerp(t[c].lerp(t[d], fx), fy);
+        let alpha = match &self.alpha {
+            Some(al) => {
+                let lerp = |p: f32, q: f32, f: f32| p + (q - p) * f;
+                lerp(lerp(al[a], al[b], fx), lerp(al[c], al[d], fx), fy)
+            }
+            None => 1.0,
+        };
+        rgb.extend(alpha)
+    }
+
+    /// Bilinear alpha at `uv` (1 without an alpha channel).
+    #[inline]
+    pub fn sample_alpha(&self, uv: Vec2) -> f32 {
+        let Some(al) = &self.alpha else { return 1.0 };
+        let ([a, b, c, d], fx, fy) = self.footprint(uv);
+        let lerp = |p: f32, q: f32, f: f32| p + (q - p) * f;
+        lerp(lerp(al[a], al[b], fx), lerp(al[c], al[d], fx), fy)
     }
 }
 
@@ -137,6 +247,11 @@ fn wrap(i: i64, n: u32, mode: WrapMode) -> usize {
     match mode {
         WrapMode::Repeat => i.rem_euclid(n) as usize,
         WrapMode::Clamp => i.clamp(0, n - 1) as usize,
+        WrapMode::MirroredRepeat => {
+            // Period 2n: 0..n forwards, then n..2n backwards.
+            let j = i.rem_euclid(2 * n);
+            (if j < n { j } else { 2 * n - 1 - j }) as usize
+        }
     }
 }
 
@@ -192,6 +307,49 @@ mod tests {
             r.sample_bilinear(Vec2::new(3.25, -1.25)),
             r.sample_bilinear(Vec2::new(0.25, 0.75))
         ));
+    }
+
+    #[test]
+    fn mirrored_repeat_reflects_every_other_tile_and_axes_wrap_apart() {
+        let mut t = tiny(WrapMode::MirroredRepeat);
+        // Column -1 mirrors column 0, column 2 mirrors column 1.
+        assert_eq!(t.texel(-1, 0), Vec3::X);
+        assert_eq!(t.texel(2, 0), Vec3::Y);
+        assert_eq!(t.texel(3, 0), Vec3::X);
+        assert_eq!(t.texel(4, 0), Vec3::X);
+        // A point just past u = 1 reads like one just before it.
+        assert!(close(
+            t.sample_bilinear(Vec2::new(1.1, 0.75)),
+            t.sample_bilinear(Vec2::new(0.9, 0.75))
+        ));
+        t.wrap = WrapMode::Clamp;
+        t.wrap_v = WrapMode::Repeat;
+        assert_eq!(t.texel(5, -1), Vec3::ONE, "u clamps to column 1, v repeats to row 1");
+    }
+
+    #[test]
+    fn rotation_turns_the_lookup_counter_clockwise() {
+        let mut t = tiny(WrapMode::Clamp);
+        t.uv_rotation = std::f32::consts::FRAC_PI_2;
+        t.uv_offset = Vec2::new(1.0, 0.0);
+        // (0.25, 0.75) rotates to (-0.75, 0.25), then moves to (0.25, 0.25).
+        assert!(
+            t.transform(Vec2::new(0.25, 0.75))
+                .abs_diff_eq(Vec2::new(0.25, 0.25), 1e-6)
+        );
+        assert!(close(t.sample_bilinear(Vec2::new(0.25, 0.75)), Vec3::Z));
+    }
+
+    #[test]
+    fn alpha_is_interpolated_like_colour_and_defaults_to_one() {
+        let t = tiny(WrapMode::Clamp);
+        assert_eq!(t.sample_alpha(Vec2::splat(0.3)), 1.0);
+        assert!(!t.has_alpha());
+        let t = t.with_alpha(vec![0.0, 1.0, 0.0, 1.0]).expect("4 alphas");
+        assert!((t.sample_alpha(Vec2::new(0.5, 0.5)) - 0.5).abs() < 1e-6);
+        let rgba = t.sample_rgba(Vec2::new(0.75, 0.25));
+        assert!(close(rgba.truncate(), Vec3::ONE) && (rgba.w - 1.0).abs() < 1e-6);
+        assert!(tiny(WrapMode::Clamp).with_alpha(vec![1.0; 3]).is_err());
     }
 
     #[test]

@@ -152,10 +152,12 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
     let n_parented = w.query::<&Parent>().iter().count();
     let mut n_point = 0;
     let mut n_directional = 0;
+    let mut n_spot = 0;
     for light in w.query::<&Light>().iter() {
         match light {
             Light::Point { .. } => n_point += 1,
             Light::Directional { .. } => n_directional += 1,
+            Light::Spot { .. } => n_spot += 1,
         }
     }
     let mut features: BTreeSet<&str> = BTreeSet::new();
@@ -184,6 +186,15 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
             if m.emission.max_element() > 0.0 {
                 features.insert("emission");
             }
+            if m.pbr.is_some() {
+                features.insert("metallic_roughness");
+            }
+            if m.normal_map.is_some() {
+                features.insert("normal_maps");
+            }
+            if m.is_masked() {
+                features.insert("alpha_mask");
+            }
         }
     }
     if n_parented > 0 {
@@ -194,6 +205,9 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
     }
     if n_directional > 0 {
         features.insert("directional_lights");
+    }
+    if n_spot > 0 {
+        features.insert("spot_lights");
     }
     // What the renderer specialises on, from the extract's own analysis
     // (null when the scene cannot be extracted, e.g. without a camera).
@@ -210,6 +224,7 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
             "materials": n_materials,
             "point_lights": n_point,
             "directional_lights": n_directional,
+            "spot_lights": n_spot,
             "cameras": n_cameras,
         },
         "instanced_triangles": triangles,

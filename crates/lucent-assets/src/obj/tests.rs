@@ -248,3 +248,40 @@ fn groups_and_materials_split_parts_and_missing_ones_are_magenta() {
         report.warnings
     );
 }
+
+#[test]
+fn pbr_extension_fields_make_a_metallic_roughness_material() {
+    // A 1x1 texel of 128 read as linear data (normal and roughness maps)
+    // is 128/255, as sRGB colour (map_Kd, map_Ke) about 0.216.
+    let png: &'static [u8] = Box::leak(
+        crate::encode_png(1, 1, &[128, 128, 128])
+            .unwrap_or_default()
+            .into_boxed_slice(),
+    );
+    let mtl: &[u8] = b"newmtl shiny\nKd 0.5 0.25 0\nPm 0.75\nPr 0.4\nd 0.9\nmap_Kd t.png\nnorm -bm 2 t.png\nmap_Pr t.png\nmap_Ke t.png\n";
+    let (parts, report) = load(&[("q.obj", QUAD_OBJ), ("q.mtl", mtl), ("t.png", png)], "q.obj").unwrap_or_default();
+    let m = parts[0].material.as_ref().expect("material");
+    let pbr = m.pbr.as_ref().expect("Pm makes it metallic-roughness");
+    assert_eq!(
+        (pbr.base_color, pbr.metallic, pbr.roughness),
+        (Vec3::new(0.5, 0.25, 0.0), 0.75, 0.4)
+    );
+    assert!((pbr.transmission - 0.1).abs() < 1e-6 && pbr.metallic_map.is_none());
+    let texel = |t: &Option<std::sync::Arc<lucent_shading::Texture>>| t.as_ref().map(|t| t.texel(0, 0).x);
+    let linear = 128.0 / 255.0;
+    assert_eq!(texel(&pbr.roughness_map), Some(linear));
+    assert_eq!(texel(&m.normal_map), Some(linear));
+    let srgb = texel(&m.diffuse_map).unwrap_or(0.0);
+    assert!((srgb - 0.2158).abs() < 1e-3, "{srgb}");
+    assert_eq!(texel(&m.emission_map), Some(srgb));
+    assert_eq!(m.emission, Vec3::ONE, "map_Ke alone emits as it is");
+    // The Whitted terms come from the metallic-roughness parameters.
+    assert_eq!(m.kd, Vec3::new(0.5, 0.25, 0.0) * 0.25 * 0.9);
+    assert_eq!(
+        report.warnings,
+        vec!["q.mtl: material 'shiny': norm option -bm 2 is not supported and is ignored".to_owned()]
+    );
+    // Without Pm or a metallic/roughness map the material stays the report's.
+    let (parts, _) = load(&[("q.obj", QUAD_OBJ), ("q.mtl", QUAD_MTL)], "q.obj").unwrap_or_default();
+    assert!(parts[0].material.as_ref().is_some_and(|m| m.pbr.is_none()));
+}

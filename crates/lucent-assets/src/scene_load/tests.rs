@@ -151,3 +151,47 @@ fn parts_sharing_an_mtl_material_share_its_entity() {
     let c = scene.counts();
     assert_eq!((c.meshes, c.instances, c.materials), (3, 3, 2));
 }
+
+#[test]
+fn metallic_keys_make_a_metallic_roughness_material() {
+    let text = r#"
+[materials.gold]
+kd = [1, 0.5, 0.25]
+metallic = 1.0
+roughness = 0.3
+
+[materials.plain]
+kd = 0.5
+roughness = 0.3
+
+[[objects]]
+mesh = "../meshes/tri.ply"
+material = "gold"
+
+[[objects]]
+mesh = "../meshes/tri.ply"
+material = "plain"
+"#;
+    let (scene, _) = load(text).unwrap_or_else(|e| panic!("{e}"));
+    let mut seen = 0;
+    for m in scene.world.query::<&Material>().iter() {
+        match &m.pbr {
+            Some(p) => {
+                assert_eq!(
+                    (p.base_color, p.metallic, p.roughness),
+                    (Vec3::new(1.0, 0.5, 0.25), 1.0, 0.3)
+                );
+                assert_eq!(
+                    (m.ior, m.kd),
+                    (1.5, Vec3::ZERO),
+                    "glTF's default ior; a metal has no diffuse"
+                );
+                seen += 1;
+            }
+            None => assert_eq!(m.kd, Vec3::splat(0.5)),
+        }
+    }
+    assert_eq!(seen, 1);
+    let bad = load("[materials.m]\nmetallic = 2.0\n").map(|_| ());
+    assert!(bad.as_ref().is_err_and(|e| e.contains("between 0 and 1")), "{bad:?}");
+}

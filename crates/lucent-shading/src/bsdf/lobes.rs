@@ -179,3 +179,26 @@ pub(super) fn ggx_sample(wo: Vec3, u: Vec2, alpha: f32) -> Option<Vec3> {
 pub(super) fn ggx_g1(w: Vec3, alpha: f32) -> f32 {
     1.0 / (1.0 + ggx_lambda(w, alpha))
 }
+
+/// Smith's masking `G1(w)` for a direction on either side (mirrored up).
+#[inline]
+pub(super) fn ggx_g1_up(w: Vec3, alpha: f32) -> f32 {
+    let w = flip_if(w.z < 0.0, w);
+    1.0 / (1.0 + ggx_lambda(w, alpha))
+}
+
+/// Smith's height-correlated `G2(wo, wi)` for a reflection pair (both
+/// mirrored up).
+#[inline]
+pub(super) fn ggx_g2_up(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
+    let (wo, wi) = (flip_if(wo.z < 0.0, wo), flip_if(wi.z < 0.0, wi));
+    1.0 / (1.0 + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha))
+}
+
+/// `|wo.h|` for the reflection half vector `h` of unit `wo` and `wi`:
+/// `sqrt((1 + wo.wi) / 2)`, which stays accurate when the two are nearly
+/// opposite (grazing pairs), where normalising `wo + wi` would not.
+#[inline]
+pub(super) fn reflection_cos_half(wo: Vec3, wi: Vec3) -> f32 {
+    (0.5 * (1.0 + wo.dot(wi))).clamp(0.0, 1.0).sqrt()
+}

@@ -10,9 +10,11 @@
 //! | smooth conductor (Fresnel 1) | [`Bsdf::mirror`] | yes | two-sided |
 //! | GGX conductor (Fresnel 1, Smith height-correlated G2, visible-normal sampling) | [`Bsdf::rough_conductor`] | no | two-sided |
 //! | smooth dielectric (exact Fresnel, total internal reflection) | [`Bsdf::dielectric`] | yes (both lobes) | outside = `wo.z > 0` |
+//! | glTF metallic-roughness: GGX with Schlick Fresnel over a coupled Lambertian base, plus a smooth dielectric for transmission | [`Bsdf::metallic_roughness`] | when `roughness` is 0 (specular) | two-sided |
 //!
 //! [`Material::bsdf`](crate::Material::bsdf) maps the report's material
-//! parameters onto a mixture of these.
+//! parameters onto a mixture of these, and a metallic-roughness material
+//! onto the last.
 //!
 //! Conventions: directions are unit vectors in the local frame of a
 //! [`Frame`], whose z axis is the shading normal as stored (not flipped
@@ -38,6 +40,7 @@
 //! ```
 
 mod lobes;
+mod pbr;
 #[cfg(test)]
 mod stats;
 #[cfg(test)]
@@ -45,6 +48,7 @@ mod tests;
 
 use crate::optics::{fresnel_dielectric, refract};
 use lucent_geom::{Vec2, Vec3};
+pub use pbr::dielectric_f0;
 
 /// Orthonormal shading frame; local z is the shading normal.
 #[derive(Clone, Copy, Debug)]
@@ -140,6 +144,16 @@ pub struct Bsdf {
     dielectric: Vec3,
     /// Index of refraction inside over outside.
     eta: f32,
+    /// Fresnel term of the conductor lobe: 1 (the report's mirrors and
+    /// Mitsuba's `conductor` with material `none`) or, when `schlick`,
+    /// `f0 + (f90 - f0) (1 - wo.h)^5` per channel.
+    schlick: bool,
+    f0: Vec3,
+    f90: f32,
+    /// When at least 0: the diffuse lobe lies under a dielectric GGX layer
+    /// of the conductor lobe's `alpha` and this `F0`, and is weighted by
+    /// the light that layer lets through (see `pbr.rs`).
+    coupled_f0: f32,
     /// Cumulative lobe-selection probabilities, in lobe order; all zero for
     /// a black BSDF.
     cdf: [f32; 4],
@@ -217,7 +231,102 @@ impl Bsdf {
             alpha,
             dielectric,
             eta,
+            schlick: false,
+            f0: Vec3::ONE,
+            f90: 1.0,
+            coupled_f0: -1.0,
             cdf,
+        }
+    }
+
+    /// The glTF 2.0 metallic-roughness BRDF (specification, appendix B),
+    /// two-sided:
+    ///
+    /// - a GGX specular layer (`alpha = roughness^2`, Smith's
+    ///   height-correlated G2, visible-normal sampling) whose Schlick
+    ///   Fresnel has `F0` mixed by `metallic` between the dielectric's
+    ///   `((ior - 1) / (ior + 1))^2` and `base` (the metal's coloured
+    ///   Fresnel), so dielectric and metal share one specular lobe;
+    /// - under the dielectric part, a Lambertian base of albedo `base`,
+    ///   weighted by `(1 - metallic) (1 - transmission)` and coupled to the
+    ///   layer so that the pair never reflects more than it receives (the
+    ///   specification's `1 - F(v.h)` weight does; see `pbr.rs`);
+    /// - `(1 - metallic) transmission` of a smooth dielectric of index
+    ///   `ior` (`KHR_materials_transmission`: the transmitting share
+    ///   refracts, and the layer above it reflects with the exact Fresnel
+    ///   term; its roughness is not modelled).
+    ///
+    /// `roughness` 0 makes the specular lobe a delta mirror with Fresnel.
+    /// Parameters are clamped to their ranges; NaN reads as 0 (`ior` as
+    /// 1.5).
+    ///
+    /// ```
+    /// use lucent_shading::{Bsdf, Vec2, Vec3};
+    /// let gold = Bsdf::metallic_roughness(Vec3::new(1.0, 0.77, 0.34), 1.0, 0.3, 0.0, 1.5);
+    /// let wo = Vec3::new(0.0, 0.6, 0.8);
+    /// let s = gold.sample(wo, 0.5, Vec2::new(0.3, 0.7)).expect("a rough metal reflects");
+    /// assert!(!s.delta && s.weight.max_element() <= 1.0);
+    /// assert!(Bsdf::metallic_roughness(Vec3::ONE, 0.0, 0.0, 0.0, 1.5).is_delta() == false);
+    /// ```
+    pub fn metallic_roughness(base: Vec3, metallic: f32, roughness: f32, transmission: f32, ior: f32) -> Bsdf {
+        let unit = |x: f32| if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+        let base = clean(base).min(Vec3::ONE);
+        let (m, r, t) = (unit(metallic), unit(roughness), unit(transmission));
+        let ior = if ior.is_finite() && ior > 0.0 { ior } else { 1.5 };
+        let alpha = r * r;
+        let f0_d = pbr::dielectric_f0(ior);
+        // Share of the dielectric (non-metal, non-transmitting) layer.
+        let a = (1.0 - m) * (1.0 - t);
+        let f0 = Vec3::splat(a * f0_d) + base * m;
+        let f90 = a + m;
+        let diffuse = base * a;
+        let dielectric = Vec3::splat((1.0 - m) * t);
+        let mut b = Bsdf::mix(diffuse, Vec3::ZERO, 0.0, Vec3::splat(f90), alpha, dielectric, ior);
+        b.conductor = if f90 > 0.0 { Vec3::ONE } else { Vec3::ZERO };
+        b.schlick = true;
+        b.f0 = f0;
+        b.f90 = f90;
+        b.alpha = if alpha < MIN_ALPHA { 0.0 } else { alpha };
+        b.coupled_f0 = f0_d;
+        // Lobe selection by the light each lobe reflects on average: the
+        // base below the layer, the layer (at least a tenth of its share,
+        // so highlights are sampled), the transmission.
+        let mean = |v: Vec3| v.element_sum() / 3.0;
+        let layer_avg = pbr::layer_albedo_avg(b.alpha, f0_d, 1.0);
+        let metal_avg = mean(base + (Vec3::ONE - base) / 21.0);
+        let w_spec = (a * layer_avg + m * metal_avg).max(0.1 * f90);
+        let w_diffuse = mean(diffuse) * (1.0 - layer_avg);
+        b.set_selection([w_diffuse, 0.0, if f90 > 0.0 { w_spec } else { 0.0 }, mean(dielectric)]);
+        b
+    }
+
+    /// Replaces the lobe-selection probabilities by ones proportional to
+    /// `w` (a lobe without weight must get zero).
+    fn set_selection(&mut self, w: [f32; 4]) {
+        let w = w.map(|x| if x.is_finite() && x > 0.0 { x } else { 0.0 });
+        let total: f32 = w.iter().sum();
+        let mut cdf = [0.0; 4];
+        if total > 0.0 && total.is_finite() {
+            let mut acc = 0.0;
+            for (c, wk) in cdf.iter_mut().zip(w) {
+                acc += wk / total;
+                *c = acc;
+            }
+            let last = w.iter().rposition(|&wk| wk > 0.0).unwrap_or(0);
+            for c in &mut cdf[last..] {
+                *c = 1.0;
+            }
+        }
+        self.cdf = cdf;
+    }
+
+    /// The conductor lobe's Fresnel term at `c = |wo.h|`.
+    #[inline]
+    fn conductor_fresnel(&self, c: f32) -> Vec3 {
+        if self.schlick {
+            pbr::schlick(self.f0, self.f90, c)
+        } else {
+            Vec3::ONE
         }
     }
 
@@ -296,13 +405,20 @@ impl Bsdf {
     fn eval_unit(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         let mut f = Vec3::ZERO;
         if self.prob(DIFFUSE) > 0.0 {
-            f += self.diffuse * lobes::lambert_eval(wo, wi);
+            let mut d = lobes::lambert_eval(wo, wi);
+            if self.coupled_f0 >= 0.0 && d > 0.0 {
+                d *= pbr::coupling(wo.z.abs(), wi.z.abs(), self.alpha, self.coupled_f0);
+            }
+            f += self.diffuse * d;
         }
         if self.prob(GLOSSY) > 0.0 {
             f += self.glossy * lobes::phong_eval(wo, wi, self.exponent);
         }
         if self.prob(CONDUCTOR) > 0.0 && !self.smooth_conductor() {
-            f += self.conductor * lobes::ggx_eval(wo, wi, self.alpha);
+            let g = lobes::ggx_eval(wo, wi, self.alpha);
+            if g > 0.0 {
+                f += self.conductor * g * self.conductor_fresnel(lobes::reflection_cos_half(wo, wi));
+            }
         }
         if f.is_finite() { f } else { Vec3::ZERO }
     }
@@ -351,7 +467,7 @@ impl Bsdf {
             CONDUCTOR if self.smooth_conductor() => {
                 return finite(BsdfSample {
                     wi: lobes::reflect_z(wo),
-                    weight: self.conductor / p,
+                    weight: self.conductor * self.conductor_fresnel(wo.z.abs()) / p,
                     pdf: p,
                     delta: true,
                 });
