@@ -2,7 +2,9 @@
 //!
 //! - [`load_scene`] reads a TOML scene file and everything it refers to
 //!   (meshes, textures) and spawns the entities of a
-//!   [`Scene`](lucent_scene::Scene);
+//!   [`Scene`](lucent_scene::Scene); given a model instead (glTF 2.0
+//!   through [`load_gltf_from`], OBJ or PLY) it makes a scene around it
+//!   ([`model_scene`]);
 //! - [`load_mesh`] reads one OBJ (with its MTL materials) or PLY file;
 //! - [`load_texture`] decodes PNG/JPEG into linear RGB;
 //! - [`encode_png`] / [`save_png`] write 8-bit sRGB images, [`encode_exr`] /
@@ -29,8 +31,10 @@
 #![warn(clippy::unwrap_used, clippy::expect_used)]
 
 mod error;
+mod gltf_load;
 mod image_io;
 mod mesh;
+pub mod model_scene;
 mod mtl;
 mod obj;
 mod ply;
@@ -43,6 +47,7 @@ mod source;
 mod hostile_tests;
 
 pub use error::{AssetError, LoadReport, Location};
+pub use gltf_load::{GltfOptions, SUPPORTED_EXTENSIONS as GLTF_EXTENSIONS, load_gltf_from};
 pub use image_io::{
     ColorSpace, MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png, load_texture,
     save_exr, save_png, texture_from_bytes, texture_from_bytes_as,

@@ -21,12 +21,21 @@ pub fn load_scene(path: &Path) -> Result<(Scene, LoadReport), AssetError> {
     load_scene_from(&FileSystem, path)
 }
 
-/// Loads a scene file and what it refers to from `source`. Relative paths in
-/// the file resolve against the file's directory.
+/// Loads a scene from `source`: a TOML scene file and what it refers to, or
+/// a model (`.gltf`, `.glb`, `.obj`, `.ply`, told by the extension) with a
+/// scene made around it (see [`crate::model_scene`]). Relative paths in the
+/// file resolve against the file's directory.
 ///
-/// Errors in the file, and failures to load a mesh or texture it names, are
-/// reported at the offending value (`file:line:column: message`).
+/// Errors in a scene file, and failures to load a mesh or texture it names,
+/// are reported at the offending value (`file:line:column: message`); a
+/// glTF file's errors name the JSON pointer of the offending part.
 pub fn load_scene_from(source: &dyn AssetSource, path: &Path) -> Result<(Scene, LoadReport), AssetError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("gltf" | "glb") => return crate::load_gltf_from(source, path, crate::GltfOptions::default()),
+        Some("obj" | "ply") => return crate::model_scene::load_model_scene(source, path),
+        _ => {}
+    }
     let bytes = source.read(path)?;
     let text = std::str::from_utf8(&bytes).map_err(|e| {
         let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
@@ -337,7 +346,7 @@ impl Loader<'_> {
 }
 
 /// World-space bounds of every instance, parents included.
-fn world_bounds(world: &World) -> Aabb {
+pub(crate) fn world_bounds(world: &World) -> Aabb {
     let mut q = world.query::<(Entity, &MeshRef)>();
     q.iter().fold(Aabb::EMPTY, |b, (e, m)| {
         let mesh_bounds = world.get::<&Mesh>(m.0).map_or(Aabb::EMPTY, |mesh| mesh.0.bounds());

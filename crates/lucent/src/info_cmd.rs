@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 /// Arguments of `lucent info`.
 #[derive(Args, Debug)]
 pub struct InfoArgs {
-    /// A mesh (.obj, .ply) or scene (.toml) file.
+    /// A mesh (.obj, .ply), scene (.toml) or glTF (.gltf, .glb) file.
     file: PathBuf,
 }
 
@@ -32,9 +32,9 @@ pub fn run(args: InfoArgs) -> Result<()> {
         .map(str::to_ascii_lowercase);
     let info = match ext.as_deref() {
         Some("obj" | "ply") => mesh_info(&args.file)?,
-        Some("toml") => scene_info(&args.file)?,
+        Some("toml" | "gltf" | "glb") => scene_info(&args.file)?,
         _ => bail!(
-            "{}: unknown file type (expected .obj, .ply or .toml)",
+            "{}: unknown file type (expected .obj, .ply, .toml, .gltf or .glb)",
             args.file.display()
         ),
     };
@@ -52,6 +52,9 @@ fn attributes(m: &TriMesh) -> Vec<&'static str> {
     }
     if m.colors().is_some() {
         a.push("colors");
+    }
+    if m.tangents().is_some() {
+        a.push("tangents");
     }
     a
 }

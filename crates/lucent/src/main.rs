@@ -42,7 +42,7 @@ enum Command {
     Render(render_cmd::RenderArgs),
     /// Measure: repeated renders, median time, one JSON line.
     Bench(bench_cmd::BenchArgs),
-    /// Describe a mesh (.obj, .ply) or scene (.toml) file as JSON.
+    /// Describe a mesh (.obj, .ply), scene (.toml) or glTF (.gltf, .glb) file as JSON.
     Info(info_cmd::InfoArgs),
 }
 

@@ -17,7 +17,8 @@ const MAX_SPP: u32 = 65536;
 /// Arguments of `lucent render`.
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Scene file (TOML).
+    /// Scene (.toml) or model (.gltf, .glb, .obj, .ply) file; a model gets a
+    /// camera, lighting and the path tracer around it.
     scene: PathBuf,
     /// Output PNG file: radiance times 2^exposure, clamped to [0, 1], sRGB, 8 bits.
     #[arg(short, long, value_name = "FILE.png", required_unless_present = "exr")]

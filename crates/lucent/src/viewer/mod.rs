@@ -59,7 +59,8 @@ its samples per pixel (or --max-spp).";
 #[derive(Args, Debug, Default)]
 #[command(after_help = CONTROLS)]
 pub struct ViewArgs {
-    /// Scene file (TOML); the built-in seed scene when omitted.
+    /// Scene (.toml) or model (.gltf, .glb, .obj, .ply) file; the built-in
+    /// seed scene when omitted.
     scene: Option<PathBuf>,
     /// Stop refining once this many samples per pixel have accumulated
     /// (overrides every preset's samples).

@@ -1,0 +1,299 @@
+//! Tests of glTF loading from memory: hierarchy and instancing, data URIs,
+//! materials and lights, and bad input located by JSON pointer.
+
+use super::*;
+use crate::MemorySource;
+use lucent_scene::components::{MaterialRef, Mesh, MeshRef};
+
+/// Base64 (standard alphabet, padded) of `bytes`, for building test files.
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for c in bytes.chunks(3) {
+        let n = c
+            .iter()
+            .enumerate()
+            .fold(0u32, |acc, (i, &b)| acc | u32::from(b) << (16 - 8 * i));
+        for k in 0..=c.len() {
+            out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+        }
+        for _ in c.len()..3 {
+            out.push('=');
+        }
+    }
+    out
+}
+
+/// A triangle: three f32 positions (36 bytes), three u16 indices (6 bytes,
+/// padded to 8).
+fn triangle_bytes() -> Vec<u8> {
+    let mut b = Vec::new();
+    for v in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        for x in v {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2, 0] {
+        b.extend_from_slice(&i.to_le_bytes());
+    }
+    b
+}
+
+/// A glTF document around the triangle; `patch` edits the JSON text.
+fn document(uri: &str, patch: impl Fn(String) -> String) -> String {
+    let json = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0, 1]}}],
+  "nodes": [
+    {{"mesh": 0, "translation": [2, 0, 0], "children": [2]}},
+    {{"mesh": 0, "name": "second"}},
+    {{"camera": 0, "translation": [0, 0, 5]}}
+  ],
+  "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.8, "znear": 0.1}}}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "material": 0}}]}}],
+  "materials": [{{"pbrMetallicRoughness": {{"baseColorFactor": [1, 0.5, 0.25, 1], "metallicFactor": 0.2, "roughnessFactor": 0.6}},
+                  "emissiveFactor": [1, 1, 0], "doubleSided": true}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}}
+  ],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": 36}},
+    {{"buffer": 0, "byteOffset": 36, "byteLength": 6}}
+  ],
+  "buffers": [{{"byteLength": 44, "uri": "{uri}"}}]
+}}"#
+    );
+    patch(json)
+}
+
+fn data_uri() -> String {
+    format!("data:application/octet-stream;base64,{}", base64(&triangle_bytes()))
+}
+
+fn load_text(text: String) -> Result<(Scene, LoadReport), String> {
+    let src = MemorySource::new()
+        .with_file("m/t.gltf", Box::leak(text.into_bytes().into_boxed_slice()))
+        .with_file("m/t.bin", Box::leak(triangle_bytes().into_boxed_slice()));
+    crate::load_scene_from(&src, Path::new("m/t.gltf")).map_err(|e| e.to_string())
+}
+
+#[test]
+fn nodes_share_meshes_and_keep_their_hierarchy() {
+    for uri in [data_uri(), "t.bin".to_owned()] {
+        let (scene, report) = load_text(document(&uri, |s| s)).unwrap_or_else(|e| panic!("{e}"));
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+        assert_eq!(scene.world.query::<&Mesh>().iter().count(), 1, "one mesh, stored once");
+        let instances: Vec<Entity> = scene
+            .world
+            .query::<(Entity, &MeshRef)>()
+            .iter()
+            .map(|(e, _)| e)
+            .collect();
+        assert_eq!(instances.len(), 2);
+        let mut xs: Vec<f32> = instances
+            .iter()
+            .map(|&e| world_from_local(&scene.world, e).translation.x)
+            .collect();
+        xs.sort_by(f32::total_cmp);
+        assert_eq!(xs, vec![0.0, 2.0]);
+        // The camera is the child of the first node: at (2, 0, 5), looking
+        // down -z, so the rig orbits a point straight ahead of it.
+        let (camera, rig) = scene.camera().expect("the file's camera");
+        assert!((camera.fov_y_deg - 0.8f32.to_degrees()).abs() < 1e-4);
+        assert!(rig.position().abs_diff_eq(Vec3::new(2.0, 0.0, 5.0), 1e-4), "{rig:?}");
+        assert!(rig.center.z < 5.0 && (rig.center.x - 2.0).abs() < 1e-4);
+        // Materials: the metallic-roughness parameters and emission.
+        let mut q = scene.world.query::<&MaterialRef>();
+        let m_entity = q.iter().next().map(|m| m.0).expect("a material");
+        drop(q);
+        let m = scene.world.get::<&Material>(m_entity).expect("material component");
+        let pbr = m.pbr.as_ref().expect("metallic-roughness");
+        assert_eq!(
+            (pbr.base_color, pbr.metallic, pbr.roughness),
+            (Vec3::new(1.0, 0.5, 0.25), 0.2, 0.6)
+        );
+        assert_eq!(
+            (m.emission, m.double_sided, m.ior),
+            (Vec3::new(1.0, 1.0, 0.0), true, 1.5)
+        );
+        // No lights in the file: the default sky and key light.
+        assert_eq!(scene.environment.background, crate::model_scene::SKY);
+        assert_eq!(scene.world.query::<&Light>().iter().count(), 1);
+    }
+}
+
+#[test]
+fn lights_map_photometric_units_and_extensions_are_checked() {
+    let with_lights = |s: String| {
+        s.replace(
+            r#""nodes": [0, 1]}],"#,
+            r#""nodes": [0, 1, 3]}],
+  "extensionsUsed": ["KHR_lights_punctual", "EXT_fancy"],
+  "extensions": {"KHR_lights_punctual": {"lights": [
+     {"type": "spot", "intensity": 683, "color": [1, 0.5, 0], "spot": {"innerConeAngle": 0.1, "outerConeAngle": 0.5}}]}},"#,
+        )
+        .replace(
+            r#"{"camera": 0, "translation": [0, 0, 5]}"#,
+            r#"{"camera": 0, "translation": [0, 0, 5]},
+    {"translation": [0, 3, 0], "rotation": [-0.7071068, 0, 0, 0.7071068], "extensions": {"KHR_lights_punctual": {"light": 0}}}"#,
+        )
+    };
+    let (scene, report) = load_text(document(&data_uri(), with_lights)).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        report.warnings,
+        vec!["m/t.gltf: /extensionsUsed: extension EXT_fancy is not supported and is ignored".to_owned()]
+    );
+    let lights: Vec<Light> = scene.world.query::<&Light>().iter().copied().collect();
+    match lights.as_slice() {
+        [
+            Light::Spot {
+                position,
+                direction,
+                intensity,
+                inner_cone,
+                outer_cone,
+            },
+        ] => {
+            assert!(position.abs_diff_eq(Vec3::new(0.0, 3.0, 0.0), 1e-5));
+            // Rotated -90 degrees about x, -z points down.
+            assert!(direction.abs_diff_eq(-Vec3::Y, 1e-5), "{direction}");
+            assert!(intensity.abs_diff_eq(Vec3::new(1.0, 0.5, 0.0), 1e-6));
+            assert_eq!((*inner_cone, *outer_cone), (0.1, 0.5));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(scene.environment.background, Vec3::ZERO, "the file lights itself");
+    let required = |s: String| {
+        s.replace(
+            r#""scene": 0,"#,
+            r#""scene": 0, "extensionsRequired": ["EXT_fancy"], "extensionsUsed": ["EXT_fancy"],"#,
+        )
+    };
+    let err = load_text(document(&data_uri(), required)).map(|_| ());
+    assert_eq!(
+        err,
+        Err("m/t.gltf: /extensionsRequired/0: extension EXT_fancy is required but not supported".to_owned())
+    );
+}
+
+#[test]
+fn bad_data_is_an_error_naming_the_json_pointer() {
+    type Patch = Box<dyn Fn(String) -> String>;
+    let cases: [(&str, Patch); 8] = [
+        (
+            "/meshes/0/primitives/0/attributes/POSITION: accessor 0 reads past the end of buffer view 0",
+            Box::new(|s| s.replace(r#""count": 3, "type": "VEC3""#, r#""count": 4, "type": "VEC3""#)),
+        ),
+        ("/meshes/0/primitives/0/indices: index 7 at position 1", Box::new(|s| s)),
+        (
+            "/buffers/0/uri: broken base64 in the data URI at character",
+            Box::new(|s| s.replace("base64,AAAA", "base64,A*AA")),
+        ),
+        (
+            "/buffers/0/uri: cannot read 'missing.bin'",
+            Box::new(|s| s.replace("t.bin", "missing.bin")),
+        ),
+        (
+            "/buffers/0: byteLength is 4400 but the data has only 44 bytes",
+            Box::new(|s| s.replace(r#""byteLength": 44"#, r#""byteLength": 4400"#)),
+        ),
+        (
+            "accessor 1 is misaligned: byte offset 1",
+            Box::new(|s| {
+                s.replace(
+                    r#""componentType": 5123, "count": 3"#,
+                    r#""componentType": 5123, "byteOffset": 1, "count": 2"#,
+                )
+            }),
+        ),
+        (
+            "/meshes/0/primitives/0/attributes/POSITION",
+            Box::new(|s| s.replace(r#""POSITION": 0"#, r#""POSITION": 9"#)),
+        ),
+        (
+            "not glTF JSON: expected ident at line 1 column 3",
+            Box::new(|_| "[not json".to_owned()),
+        ),
+    ];
+    for (i, (expected, patch)) in cases.into_iter().enumerate() {
+        let uri = if i == 3 || i == 4 {
+            "t.bin".to_owned()
+        } else {
+            data_uri()
+        };
+        let mut text = document(&uri, patch);
+        if i == 1 {
+            // Index 7 in a 3-vertex mesh.
+            let mut bytes = triangle_bytes();
+            bytes[38] = 7;
+            text = text.replace(
+                &data_uri(),
+                &format!("data:application/octet-stream;base64,{}", base64(&bytes)),
+            );
+        }
+        let err = load_text(text).map(|_| ()).err().unwrap_or_default();
+        assert!(
+            err.starts_with("m/t.gltf: ") && err.contains(expected),
+            "case {i}: {err}"
+        );
+    }
+}
+
+#[test]
+fn shared_gltf_files_load_with_their_triangle_counts() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/assets");
+    // The two boxes are Draco-compressed (KHR_draco_mesh_compression in
+    // extensionsRequired), which Lucent cannot decode: a clear error.
+    for file in ["gltf-boxes/Box.glb", "gltf-boxes/BoxTextured.glb"] {
+        let path = root.join(file);
+        if !path.exists() {
+            eprintln!("skipped: {} is absent", path.display());
+            continue;
+        }
+        let err = crate::load_scene(&path)
+            .map(|_| ())
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            err.ends_with("/extensionsRequired/0: extension KHR_draco_mesh_compression is required but not supported"),
+            "{err}"
+        );
+    }
+    for (file, tris) in [("gltf-damaged-helmet/DamagedHelmet.gltf", 15452)] {
+        let path = root.join(file);
+        if !path.exists() {
+            eprintln!("skipped: {} is absent", path.display());
+            continue;
+        }
+        let (scene, report) = crate::load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+        let n: usize = scene
+            .world
+            .query::<&MeshRef>()
+            .iter()
+            .map(|m| scene.world.get::<&Mesh>(m.0).map_or(0, |mesh| mesh.0.n_triangles()))
+            .sum();
+        assert_eq!(n, tris, "{file}: {:?}", report.warnings);
+        if file.contains("Helmet") {
+            let mut q = scene.world.query::<&Material>();
+            let m = q.iter().next().expect("the helmet's material");
+            assert!(m.normal_map.is_some() && m.emission_map.is_some() && m.diffuse_map.is_some());
+            let mr = m
+                .pbr
+                .as_ref()
+                .and_then(|p| p.metallic_map.as_ref())
+                .expect("metallic-roughness map");
+            assert_eq!((mr.width(), mr.height()), (2048, 2048));
+            drop(q);
+            let mut q = scene.world.query::<&Mesh>();
+            let mesh = q.iter().next().expect("the helmet's mesh");
+            assert!(
+                mesh.0.tangents().is_some() && mesh.0.uvs().is_some(),
+                "MikkTSpace tangents"
+            );
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! A scene around a bare model: what `lucent view model.obj` or
+//! `lucent render helmet.gltf` shows without a scene file.
+//!
+//! - The camera frames the model with the orbit rig (a glTF file's own
+//!   perspective camera is kept instead).
+//! - Materials are the file's own, or a neutral default (a grey dielectric
+//!   of roughness 0.5 in the metallic-roughness model).
+//! - Lighting, when the file brings no lights: a uniform sky (the
+//!   background, which the path tracer gathers as light) plus a key light
+//!   from above the camera's left shoulder.
+//! - The path tracer at [`MODEL_SPP`] samples per pixel; command-line flags
+//!   override any of it.
+
+use crate::{AssetError, AssetSource, LoadReport, load_mesh_from};
+use lucent_geom::{Affine3A, Vec3};
+use lucent_scene::components::{Camera, Light, Material, OrbitRig};
+use lucent_scene::{Integrator, Scene};
+use lucent_shading::MetallicRoughness;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Radiance of the default sky.
+pub const SKY: Vec3 = Vec3::new(0.45, 0.5, 0.6);
+/// Irradiance of the default key light.
+pub const KEY_LIGHT: f32 = 2.5;
+/// Samples per pixel of a model's scene.
+pub const MODEL_SPP: u32 = 32;
+
+/// What [`surround`] adds.
+#[derive(Clone, Copy, Debug)]
+pub struct Surroundings {
+    /// A camera framing the scene.
+    pub camera: bool,
+    /// The default sky and key light.
+    pub lights: bool,
+}
+
+/// The neutral default material of a model without its own.
+pub fn default_material() -> Material {
+    Material::metallic_roughness(MetallicRoughness {
+        base_color: Vec3::splat(0.8),
+        metallic: 0.0,
+        roughness: 0.5,
+        ..MetallicRoughness::default()
+    })
+}
+
+/// Loads an OBJ (with its MTL materials) or PLY file as a scene.
+pub fn load_model_scene(source: &dyn AssetSource, path: &Path) -> Result<(Scene, LoadReport), AssetError> {
+    let (parts, report) = load_mesh_from(source, path)?;
+    let mut report = report;
+    let mut scene = Scene::default();
+    let mut materials: HashMap<String, lucent_scene::hecs::Entity> = HashMap::new();
+    let mut default = None;
+    let stem = path
+        .file_stem()
+        .map_or_else(|| "model".into(), |s| s.to_string_lossy().into_owned());
+    for part in parts {
+        let material = match part.material {
+            Some(m) => {
+                let key = part.material_name.clone().unwrap_or_else(|| part.name.clone());
+                *materials.entry(key).or_insert_with_key(|k| scene.add_material(k, m))
+            }
+            None => *default.get_or_insert_with(|| scene.add_material("default", default_material())),
+        };
+        let name = if part.name.is_empty() {
+            stem.clone()
+        } else {
+            part.name.clone()
+        };
+        let mesh = scene.add_mesh(&name, part.mesh.with_smooth_normals_if_missing());
+        scene.add_instance(&name, mesh, material, Affine3A::IDENTITY);
+    }
+    let has_emission = scene
+        .world
+        .query::<&Material>()
+        .iter()
+        .any(|m| m.emission.max_element() > 0.0);
+    surround(
+        &mut scene,
+        &mut report,
+        path,
+        Surroundings {
+            camera: true,
+            lights: !has_emission,
+        },
+    );
+    Ok((scene, report))
+}
+
+/// Gives a loaded model the camera, lighting and settings it lacks.
+pub fn surround(scene: &mut Scene, report: &mut LoadReport, path: &Path, what: Surroundings) {
+    let bounds = crate::scene_load::world_bounds(&scene.world);
+    let fov_y_deg: f32 = 40.0;
+    if what.camera {
+        let (center, radius) = if bounds.is_empty() {
+            (Vec3::ZERO, 3.0)
+        } else {
+            let sphere = 0.5 * bounds.extent().length();
+            (bounds.center(), 1.1 * sphere / (0.5 * fov_y_deg.to_radians()).sin())
+        };
+        let rig = OrbitRig {
+            center,
+            radius,
+            theta: 15f32.to_radians(),
+            phi: 90f32.to_radians(),
+        }
+        .sanitized();
+        scene.add_camera("camera", Camera { fov_y_deg }, rig);
+    }
+    if bounds.is_empty() {
+        report.warn(path, "the model has no triangles to show");
+    }
+    if what.lights {
+        scene.environment.background = SKY;
+        scene.environment.ambient = Vec3::splat(0.25);
+        // From above and to the camera's left, wherever the camera is.
+        let rig = scene.camera().map(|(_, r)| r).unwrap_or_default();
+        let [x, y, z] = rig.axes();
+        let to_light = (-z + 1.2 * y + 0.6 * x).normalize_or(Vec3::Y);
+        scene.add_light(
+            "key",
+            Light::Directional {
+                to_light,
+                intensity: Vec3::splat(KEY_LIGHT),
+            },
+        );
+    }
+    scene.settings.integrator = Integrator::Path;
+    scene.settings.spp = MODEL_SPP;
+}
