@@ -31,6 +31,14 @@ pub struct RenderInstance {
     pub reads: VertexReads,
 }
 
+impl RenderInstance {
+    /// A triangle's corners, given in object space, in render space.
+    #[inline]
+    pub fn corners_to_render(&self, corners: [Vec3; 3]) -> [Vec3; 3] {
+        corners.map(|p| self.world_from_object.transform_point3(p))
+    }
+}
+
 /// Which per-vertex arrays of an instance's mesh the integrators read at a
 /// hit. An array the mesh lacks is never read; one it has is skipped when
 /// nothing the instance's material does depends on it (texture coordinates

@@ -62,7 +62,7 @@ impl FlatBvh {
                 // Three fresh corners per triangle, in the mesh's corner
                 // order, so the barycentrics of a hit are the mesh's own.
                 let base = positions.len() as u32;
-                positions.extend(mesh.triangle(t).map(|p| inst.world_from_object.transform_point3(p)));
+                positions.extend(inst.corners_to_render(mesh.triangle(t)));
                 indices.push([base, base + 1, base + 2]);
                 owner.push((i as u32, t as u32));
             }
