@@ -68,7 +68,7 @@ impl<'a> SurfaceInteraction<'a> {
         let bary = Vec3::new(1.0 - hit.u - hit.v, hit.u, hit.v);
         let obj = mesh.triangle(hit.prim as usize);
         let corners = instance.corners_to_render(obj);
-        let to_render = instance.normal_from_object;
+        let to_render = instance.normal_render_from_object;
         let ng = (to_render * triangle_normal(obj)).try_normalize()?;
         let reads = instance.reads;
         let normals = mesh.normals().filter(|_| reads.normals);
@@ -165,8 +165,8 @@ mod tests {
         RenderInstance {
             mesh: 0,
             material: 3,
-            world_from_object: xf,
-            normal_from_object: xf.matrix3.inverse().transpose(),
+            render_from_object: xf,
+            normal_render_from_object: xf.matrix3.inverse().transpose(),
             reads: VertexReads {
                 normals: true,
                 uvs: true,

@@ -378,8 +378,8 @@ mod tests {
         RenderInstance {
             mesh,
             material,
-            world_from_object: Affine3A::IDENTITY,
-            normal_from_object: Mat3A::IDENTITY,
+            render_from_object: Affine3A::IDENTITY,
+            normal_render_from_object: Mat3A::IDENTITY,
             reads: crate::VertexReads::default(),
         }
     }
