@@ -348,7 +348,7 @@ fn self_hits(scene: &Scene, scale: f32, sphere: bool) -> SelfHits {
             let mesh = &rs.meshes[inst.mesh as usize];
             let corners = mesh
                 .triangle(hit.prim as usize)
-                .map(|p| inst.world_from_object.transform_point3(p));
+                .map(|p| inst.render_from_object.transform_point3(p));
             let mut ng = triangle_normal(corners).normalize();
             if ng.dot(ray.dir) > 0.0 {
                 ng = -ng;
