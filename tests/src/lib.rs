@@ -11,8 +11,10 @@
 
 use insta::internals::SnapshotContents;
 use insta::{Comparator, Snapshot};
+use lucent_geom::{Affine3A, Vec3};
 use lucent_render::{Film, RenderSettings, extract, render};
 use lucent_scene::Scene;
+use lucent_scene::components::{Light, Parent, Transform};
 use std::path::{Path, PathBuf};
 
 /// The repository root (where `res/` lives).
@@ -35,6 +37,34 @@ pub fn render_scene(scene: &Scene, tweak: impl FnOnce(&mut RenderSettings)) -> F
     tweak(&mut settings);
     let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
     render(&rs, &settings, &|_| {}).film
+}
+
+/// Places the whole scene by a uniform `scale` followed by `translate`:
+/// every root transform, every light and the camera rig, so the picture
+/// should not change. Lights are matched without a wildcard, so a new kind
+/// of light must say here how it moves (the extremes suites rely on this).
+pub fn place_scene(scene: &mut Scene, scale: f32, translate: Vec3) {
+    let m = Affine3A::from_translation(translate) * Affine3A::from_scale(Vec3::splat(scale));
+    for (t, parent) in scene.world.query_mut::<(&mut Transform, Option<&Parent>)>() {
+        if parent.is_none() {
+            t.0 = m * t.0;
+        }
+    }
+    for light in scene.world.query_mut::<&mut Light>() {
+        match light {
+            Light::Point { position, intensity } => {
+                *position = m.transform_point3(*position);
+                // Intensity falls off with the squared distance.
+                *intensity *= scale * scale;
+            }
+            // Direction and irradiance do not depend on where the scene is.
+            Light::Directional { .. } => {}
+        }
+    }
+    if let Some(mut rig) = scene.camera_rig_mut() {
+        rig.center = m.transform_point3(rig.center);
+        rig.radius *= scale;
+    }
 }
 
 /// Encodes a film as an 8-bit sRGB PNG.
@@ -122,7 +152,6 @@ impl Comparator for ImageComparator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lucent_geom::Vec3;
 
     fn png(pixels: &[[u8; 3]], width: u32) -> Vec<u8> {
         let rgb: Vec<u8> = pixels.iter().flatten().copied().collect();

@@ -10,35 +10,12 @@
 use lucent_geom::{Affine3A, Vec3, shapes};
 use lucent_render::{Film, RenderSettings, Shading, extract, render};
 use lucent_scene::Scene;
-use lucent_scene::components::{Camera, Light, Material, OrbitRig, Parent, Transform};
-use lucent_tests::load_repo_scene;
+use lucent_scene::components::{Camera, Light, Material, OrbitRig, Transform};
+use lucent_tests::{load_repo_scene, place_scene as place};
 
 /// Whether the slow sizes are on (`cargo xtask extremes`).
 fn full() -> bool {
     std::env::var_os("LUCENT_EXTREMES_FULL").is_some()
-}
-
-/// Places the whole scene by `world_from_old` (a uniform scale and a
-/// translation): every root transform, every point light and the camera, so
-/// the picture should not change.
-fn place(scene: &mut Scene, scale: f32, translate: Vec3) {
-    let m = Affine3A::from_translation(translate) * Affine3A::from_scale(Vec3::splat(scale));
-    for (t, parent) in scene.world.query_mut::<(&mut Transform, Option<&Parent>)>() {
-        if parent.is_none() {
-            t.0 = m * t.0;
-        }
-    }
-    for light in scene.world.query_mut::<&mut Light>() {
-        if let Light::Point { position, intensity } = light {
-            *position = m.transform_point3(*position);
-            // Intensity falls off with the squared distance.
-            *intensity *= scale * scale;
-        }
-    }
-    if let Some(mut rig) = scene.camera_rig_mut() {
-        rig.center = m.transform_point3(rig.center);
-        rig.radius *= scale;
-    }
 }
 
 /// How far apart two images of one size are.
@@ -371,7 +348,7 @@ fn self_hits(scene: &Scene, scale: f32, sphere: bool) -> SelfHits {
             let mesh = &rs.meshes[inst.mesh as usize];
             let corners = mesh
                 .triangle(hit.prim as usize)
-                .map(|p| inst.world_from_object.transform_point3(p));
+                .map(|p| inst.render_from_object.transform_point3(p));
             let mut ng = triangle_normal(corners).normalize();
             if ng.dot(ray.dir) > 0.0 {
                 ng = -ng;

@@ -1,9 +1,10 @@
 //! `cargo xtask extremes`: the extremes suite at full size.
 //!
-//! Runs `tests/tests/extremes.rs` and `tests/tests/watertight.rs` in a
-//! release build with `LUCENT_EXTREMES_FULL=1`, which turns on the cases too
-//! slow for the normal test command: a 16384x512 image, 1e6 samples per
-//! pixel, 10.5M watertightness rays per placement (157.5M in all). Every
+//! Runs `tests/tests/extremes.rs`, `extremes_path.rs` and `watertight.rs`
+//! in a release build with `LUCENT_EXTREMES_FULL=1`, which turns on the
+//! cases too slow for the normal test command: a 16384x512 image, 1e6
+//! samples per pixel, 10.5M watertightness rays per placement (157.5M in
+//! all), the path tracer's bias check at 1024 samples per pixel. Every
 //! case prints its figure; the pass conditions are the same as in the
 //! normal suite (see docs/robustness.md).
 
@@ -20,6 +21,8 @@ pub fn run_full(args: &[String]) -> Result<(), String> {
         "lucent-tests",
         "--test",
         "extremes",
+        "--test",
+        "extremes_path",
         "--test",
         "watertight",
         "--",

@@ -53,8 +53,8 @@ commands:
                            random input for S seconds (default 60): no panic,
                            finite camera, flat memory; one JSON line
   extremes [FILTER]        the extremes suite at full size (release build): a 16384-wide
-                           image, 1e6 samples per pixel, 157.5M watertightness rays;
-                           prints every figure
+                           image, 1e6 samples per pixel, 157.5M watertightness rays,
+                           the path tracer's bias at 1024 spp; prints every figure
   fuzz [TARGET...] [--runs N] [--time S] [--max-len B] [--rss-mb M] [--no-build]
                            build the fuzz targets (obj ply mtl scene texture; all
                            by default) with cargo-fuzz and run each in turn until

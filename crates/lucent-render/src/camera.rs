@@ -3,11 +3,12 @@
 use lucent_geom::{Affine3A, Ray};
 use lucent_scene::camera::{Camera, Intrinsics, OrbitRig};
 
-/// A pinhole camera for one image size, in world space.
+/// A pinhole camera for one image size, placed in the space of its rig
+/// (render space for [`RenderScene::render_rig`](crate::RenderScene::render_rig)).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PinholeCamera {
-    /// Camera to world: the rig's frame and position.
-    pub world_from_camera: Affine3A,
+    /// Camera to render space: the rig's frame and position.
+    pub render_from_camera: Affine3A,
     /// Focal lengths and principal point in pixels.
     pub intrinsics: Intrinsics,
     /// Image width in pixels.
@@ -21,21 +22,21 @@ impl PinholeCamera {
     /// `width` x `height` image.
     pub fn new(camera: &Camera, rig: &OrbitRig, width: u32, height: u32) -> Self {
         Self {
-            world_from_camera: rig.sanitized().world_from_camera(),
+            render_from_camera: rig.sanitized().world_from_camera(),
             intrinsics: camera.intrinsics(width, height),
             width,
             height,
         }
     }
 
-    /// World-space ray through continuous image point `(col, row)` (row 0 at
+    /// Render-space ray through continuous image point `(col, row)` (row 0 at
     /// the top; pixel centres at `+0.5`), with a unit direction.
     #[inline]
     pub fn ray(&self, col: f32, row: f32) -> Ray {
         let d = Camera::camera_ray_dir(&self.intrinsics, self.width, self.height, col, row);
         Ray::new(
-            self.world_from_camera.translation.into(),
-            self.world_from_camera.transform_vector3(d).normalize(),
+            self.render_from_camera.translation.into(),
+            self.render_from_camera.transform_vector3(d).normalize(),
         )
     }
 }

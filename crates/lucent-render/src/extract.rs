@@ -24,11 +24,19 @@ pub struct RenderInstance {
     /// Index into [`RenderScene::materials`].
     pub material: u32,
     /// Object to render space (world space moved by `-RenderScene::origin`).
-    pub world_from_object: Affine3A,
-    /// Transforms object-space normals to world space (inverse transpose).
-    pub normal_from_object: Mat3A,
+    pub render_from_object: Affine3A,
+    /// Object-space normals to render space (the inverse transpose).
+    pub normal_render_from_object: Mat3A,
     /// The per-vertex arrays of the mesh that shading this instance reads.
     pub reads: VertexReads,
+}
+
+impl RenderInstance {
+    /// A triangle's corners, given in object space, in render space.
+    #[inline]
+    pub fn corners_to_render(&self, corners: [Vec3; 3]) -> [Vec3; 3] {
+        corners.map(|p| self.render_from_object.transform_point3(p))
+    }
 }
 
 /// Which per-vertex arrays of an instance's mesh the integrators read at a
@@ -405,16 +413,16 @@ fn gather(scene: &Scene, origin: Vec3, all: bool) -> Result<Gathered, ExtractErr
                 .map(|m| (*m).clone())
                 .map_err(|_| ExtractError::DanglingMaterial { instance: name.clone() })
         })?;
-        let world_from_object = render_from_world * world_from_local(world, entity);
-        let bvh_instance = Instance::new(world_from_object, mesh)
+        let render_from_object = render_from_world * world_from_local(world, entity);
+        let bvh_instance = Instance::new(render_from_object, mesh)
             .ok_or_else(|| ExtractError::SingularTransform { instance: name.clone() })?;
         bvh_instances.push(bvh_instance);
         let reads = VertexReads::of(&meshes[mesh as usize], &materials[material as usize], all);
         instances.push(RenderInstance {
             mesh,
             material,
-            world_from_object,
-            normal_from_object: world_from_object.matrix3.inverse().transpose(),
+            render_from_object,
+            normal_render_from_object: render_from_object.matrix3.inverse().transpose(),
             reads,
         });
         instance_names.push(name);
@@ -694,7 +702,7 @@ mod tests {
         assert!(o != Vec3::ZERO && (o - far).abs().max_element() <= 16.0, "{o}");
         assert_eq!(rs.origin, o);
         assert_eq!(
-            rs.instances[1].world_from_object.translation,
+            rs.instances[1].render_from_object.translation,
             (Vec3::X * 3.0 - o).into()
         );
         assert_eq!(rs.render_rig().center, far - o);

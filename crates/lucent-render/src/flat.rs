@@ -1,4 +1,4 @@
-//! One BVH over every instance's triangles in world space, for the path
+//! One BVH over every instance's triangles in render space, for the path
 //! tracer.
 //!
 //! The two-level [`SceneBvh`](lucent_accel::SceneBvh) shares a mesh's tree
@@ -8,7 +8,7 @@
 //! about as much as the triangle trees themselves (a profile of the Cornell
 //! box put 29% of the path tracer's time in it). When the instances do not
 //! multiply the triangle count much, the extract step also builds this
-//! single 4-wide tree over the triangles moved to world space, and the path
+//! single 4-wide tree over the triangles moved to render space, and the path
 //! tracer queries it; hits are reported as the two-level tree reports them
 //! (instance, triangle of its mesh, barycentrics of the same corners), so
 //! shading code cannot tell the difference.
@@ -22,7 +22,7 @@ use std::sync::Arc;
 /// (the copy would cost too much memory).
 pub const MAX_FLAT_TRIANGLES: usize = 1 << 24;
 
-/// A single-level BVH over world-space triangles, with each triangle's
+/// A single-level BVH over render-space triangles, with each triangle's
 /// instance and index in its mesh.
 #[derive(Clone, Debug)]
 pub struct FlatBvh {
@@ -62,7 +62,7 @@ impl FlatBvh {
                 // Three fresh corners per triangle, in the mesh's corner
                 // order, so the barycentrics of a hit are the mesh's own.
                 let base = positions.len() as u32;
-                positions.extend(mesh.triangle(t).map(|p| inst.world_from_object.transform_point3(p)));
+                positions.extend(inst.corners_to_render(mesh.triangle(t)));
                 indices.push([base, base + 1, base + 2]);
                 owner.push((i as u32, t as u32));
             }
@@ -111,8 +111,8 @@ mod tests {
         let place = |mesh: u32, xf: Affine3A| RenderInstance {
             mesh,
             material: 0,
-            world_from_object: xf,
-            normal_from_object: Mat3A::IDENTITY,
+            render_from_object: xf,
+            normal_render_from_object: Mat3A::IDENTITY,
             reads: crate::VertexReads::default(),
         };
         let instances = vec![
@@ -130,7 +130,7 @@ mod tests {
         let blas = meshes.iter().map(|m| Arc::new(MeshBvh::build(m, &params))).collect();
         let bvh_instances = instances
             .iter()
-            .filter_map(|i| lucent_accel::Instance::new(i.world_from_object, i.mesh))
+            .filter_map(|i| lucent_accel::Instance::new(i.render_from_object, i.mesh))
             .collect();
         let two_level = lucent_accel::SceneBvh::build(blas, bvh_instances, &params);
         let mut rng = lucent_geom::Pcg32::new(5, 0);

@@ -36,6 +36,7 @@ mod camera;
 mod extract;
 mod film;
 pub mod flat;
+pub mod interaction;
 pub mod lights;
 pub mod metrics;
 pub mod path;

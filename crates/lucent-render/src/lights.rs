@@ -18,7 +18,9 @@
 //! sampled here: paths that leave the scene collect it.
 
 use crate::RenderInstance;
-use lucent_geom::{Ray, TriMesh, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
+use crate::interaction::SurfaceInteraction;
+use lucent_accel::SceneHit;
+use lucent_geom::{Ray, TriMesh, Vec2, Vec3, offset_ray_origin_scaled};
 use lucent_shading::{Light, Material};
 use std::sync::Arc;
 
@@ -37,7 +39,8 @@ pub(crate) fn emits(m: &Material) -> bool {
     e.max_element() > 0.0 && e.is_finite()
 }
 
-/// One emissive triangle in world space.
+/// One emissive triangle in render space; a degenerate one (no normal or
+/// no area) is all zeros but its radiance, and is never picked.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Emitter {
     /// First corner.
@@ -145,7 +148,7 @@ impl LightSet {
     ) -> LightSet {
         let mut emitters = Vec::new();
         let mut instance_first = Vec::with_capacity(instances.len());
-        for inst in instances {
+        for (i, inst) in instances.iter().enumerate() {
             let (Some(mesh), Some(material)) = (meshes.get(inst.mesh as usize), materials.get(inst.material as usize))
             else {
                 instance_first.push(NONE);
@@ -157,31 +160,42 @@ impl LightSet {
             }
             let emission = material.emission.max(Vec3::ZERO);
             instance_first.push(emitters.len() as u32);
-            for (t, idx) in mesh.indices().iter().enumerate() {
-                let obj = mesh.triangle(t);
-                let [a, b, c] = obj.map(|p| inst.world_from_object.transform_point3(p));
-                let cross = (b - a).cross(c - a);
-                // The same geometric normal the integrators use: the object's
-                // winding normal carried by the inverse transpose, so a
-                // mirroring transform keeps the emitting side.
-                let mut n = (inst.normal_from_object * triangle_normal(obj)).normalize_or_zero();
-                if let Some(normals) = mesh.normals() {
-                    let sum: Vec3 = idx.iter().map(|&i| inst.normal_from_object * normals[i as usize]).sum();
-                    if sum.dot(n) < 0.0 {
-                        n = -n;
-                    }
-                }
-                let area = 0.5 * cross.length();
-                let ok = n != Vec3::ZERO && area.is_finite() && area > 0.0;
-                emitters.push(Emitter {
-                    p0: a,
-                    e1: b - a,
-                    e2: c - a,
-                    n: if ok { n } else { Vec3::ZERO },
-                    area: if ok { area } else { 0.0 },
-                    radiance: emission,
-                    magnitude: [a, b, c].iter().fold(0.0f32, |m, q| m.max(q.abs().max_element())),
-                });
+            for t in 0..mesh.n_triangles() {
+                // The triangle as the integrators see it, at its centroid:
+                // the same corners and geometric normal, and the shading
+                // normal there saying which side emits, so the emitting side
+                // agrees with the vertex normals where the mesh has them.
+                let centroid = SceneHit {
+                    t: 0.0,
+                    u: 1.0 / 3.0,
+                    v: 1.0 / 3.0,
+                    prim: t as u32,
+                    instance: i as u32,
+                };
+                let emitter = SurfaceInteraction::from_hit::<false>(meshes, instances, &centroid)
+                    .and_then(|si| {
+                        let [a, b, c] = si.corners;
+                        let area = 0.5 * (b - a).cross(c - a).length();
+                        (area.is_finite() && area > 0.0).then(|| Emitter {
+                            p0: a,
+                            e1: b - a,
+                            e2: c - a,
+                            n: if si.ns.dot(si.ng) < 0.0 { -si.ng } else { si.ng },
+                            area,
+                            radiance: emission,
+                            magnitude: si.magnitude,
+                        })
+                    })
+                    .unwrap_or(Emitter {
+                        p0: Vec3::ZERO,
+                        e1: Vec3::ZERO,
+                        e2: Vec3::ZERO,
+                        n: Vec3::ZERO,
+                        area: 0.0,
+                        radiance: emission,
+                        magnitude: 0.0,
+                    });
+                emitters.push(emitter);
             }
         }
         let lum = |c: Vec3| crate::film::luminance(c.max(Vec3::ZERO)).max(0.0);
@@ -366,8 +380,8 @@ mod tests {
         RenderInstance {
             mesh,
             material,
-            world_from_object: Affine3A::IDENTITY,
-            normal_from_object: Mat3A::IDENTITY,
+            render_from_object: Affine3A::IDENTITY,
+            normal_render_from_object: Mat3A::IDENTITY,
             reads: crate::VertexReads::default(),
         }
     }

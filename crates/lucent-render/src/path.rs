@@ -36,15 +36,16 @@
 //! Secondary and shadow rays start at the hit point pushed off the surface
 //! along the geometric normal, to the side the new ray leaves into, by an
 //! amount scaled to the triangle's coordinates
-//! ([`offset_ray_origin_scaled`]); a shadow ray aims from that origin at
+//! ([`lucent_geom::offset_ray_origin_scaled`]); a shadow ray aims from that origin at
 //! the sampled point on the light, itself pushed off the light, and stops
 //! just short of it ([`LightSample::shadow_ray`](crate::lights::LightSample::shadow_ray)).
 
 use crate::flat::FlatBvh;
+use crate::interaction::SurfaceInteraction;
 use crate::lights::LightSet;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
-use lucent_geom::{Pcg32, Ray, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
+use lucent_geom::{Pcg32, Ray, Vec2, Vec3};
 use lucent_shading::{Bsdf, Frame};
 
 /// Highest survival probability of Russian roulette.
@@ -61,22 +62,6 @@ pub struct PathTracer<'a> {
     /// Per material, its BSDF when nothing varies over the surface (no
     /// texture): built once per render, not at every hit.
     plain_bsdfs: Vec<Option<Bsdf>>,
-}
-
-/// World-space geometry of a hit.
-struct Hit {
-    /// Hit point.
-    p: Vec3,
-    /// Unit geometric normal, as wound (not flipped toward the ray).
-    ng: Vec3,
-    /// Unit shading normal as stored (interpolated vertex normals, or `ng`).
-    ns: Vec3,
-    /// Texture coordinates, if the mesh has them.
-    uv: Option<Vec2>,
-    /// Vertex colour, if the mesh has colours.
-    color: Option<Vec3>,
-    /// Largest corner coordinate magnitude, which scales ray offsets.
-    magnitude: f32,
 }
 
 impl<'a> PathTracer<'a> {
@@ -129,7 +114,9 @@ impl<'a> PathTracer<'a> {
                 radiance += throughput * scene.environment.background;
                 break;
             };
-            let Some(hit) = self.hit(&sh) else { break };
+            let Some(hit) = SurfaceInteraction::from_hit::<false>(&scene.meshes, &scene.instances, &sh) else {
+                break;
+            };
 
             // Emission found by the path itself.
             if EMISSIVE && let Some((index, emitter)) = lights.emitter(sh.instance, sh.prim) {
@@ -146,13 +133,11 @@ impl<'a> PathTracer<'a> {
             if depth + 1 >= self.max_depth {
                 break;
             }
-            let Some(inst) = scene.instances.get(sh.instance as usize) else {
+            let material_index = hit.instance.material as usize;
+            let Some(material) = scene.materials.get(material_index) else {
                 break;
             };
-            let Some(material) = scene.materials.get(inst.material as usize) else {
-                break;
-            };
-            let bsdf = match (self.plain_bsdfs.get(inst.material as usize), hit.color) {
+            let bsdf = match (self.plain_bsdfs.get(material_index), hit.color) {
                 (Some(Some(bsdf)), None) => *bsdf,
                 _ => {
                     let mut tint = material.diffuse_tint(hit.uv);
@@ -174,7 +159,7 @@ impl<'a> PathTracer<'a> {
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
                     let side = if ls.wi.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
-                    let origin = offset_ray_origin_scaled(hit.p, side, hit.magnitude);
+                    let origin = hit.offset(hit.p, side);
                     if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
                         && !self.occluded(&shadow_ray, t_max)
                     {
@@ -213,7 +198,7 @@ impl<'a> PathTracer<'a> {
             }
             let out = wi.dot(hit.ng) >= 0.0;
             let side = if out { hit.ng } else { -hit.ng };
-            ray = Ray::new(offset_ray_origin_scaled(hit.p, side, hit.magnitude), wi);
+            ray = Ray::new(hit.offset(hit.p, side), wi);
             prev_p = hit.p;
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
@@ -248,48 +233,6 @@ impl<'a> PathTracer<'a> {
             Some(flat) => flat.occluded(ray, t_max),
             None => self.scene.bvh.occluded(ray, t_max),
         }
-    }
-
-    /// World-space geometry of a hit; `None` for a degenerate triangle.
-    /// Always inlined: with one call site per specialised variant of
-    /// [`PathTracer::trace`] the compiler would otherwise call it, which
-    /// cost 2 to 3% more instructions per path (cachegrind).
-    #[inline(always)]
-    fn hit(&self, sh: &SceneHit) -> Option<Hit> {
-        let inst = self.scene.instances.get(sh.instance as usize)?;
-        let mesh = self.scene.meshes.get(inst.mesh as usize)?;
-        let idx = *mesh.indices().get(sh.prim as usize)?;
-        let bary = Vec3::new(1.0 - sh.u - sh.v, sh.u, sh.v);
-        let obj = mesh.triangle(sh.prim as usize);
-        let [a, b, c] = obj.map(|p| inst.world_from_object.transform_point3(p));
-        let p = a * bary.x + b * bary.y + c * bary.z;
-        let ng = (inst.normal_from_object * triangle_normal(obj)).try_normalize()?;
-        let reads = inst.reads;
-        let ns = mesh
-            .normals()
-            .filter(|_| reads.normals)
-            .and_then(|n| {
-                let [na, nb, nc] = idx.map(|i| n[i as usize]);
-                (inst.normal_from_object * (na * bary.x + nb * bary.y + nc * bary.z)).try_normalize()
-            })
-            .unwrap_or(ng);
-        let uv = mesh.uvs().filter(|_| reads.uvs).map(|uv| {
-            let [ua, ub, uc] = idx.map(|i| uv[i as usize]);
-            ua * bary.x + ub * bary.y + uc * bary.z
-        });
-        let color = mesh.colors().filter(|_| reads.colors).map(|col| {
-            let [ca, cb, cc] = idx.map(|i| col[i as usize]);
-            ca * bary.x + cb * bary.y + cc * bary.z
-        });
-        let magnitude = [a, b, c].iter().fold(0.0f32, |m, q| m.max(q.abs().max_element()));
-        Some(Hit {
-            p,
-            ng,
-            ns,
-            uv,
-            color,
-            magnitude,
-        })
     }
 }
 

@@ -38,9 +38,9 @@
 //! size so that scenes from 1e-6 to 1e6 units behave alike), never by skipping the last object
 //! hit: concave meshes can shadow and reflect themselves.
 
+use crate::interaction::SurfaceInteraction;
 use crate::{RayStats, RenderScene, RenderSettings};
-use lucent_accel::SceneHit;
-use lucent_geom::{Ray, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
+use lucent_geom::{Ray, Vec3};
 use lucent_scene::Shading;
 use lucent_shading::optics::{reflect, refract};
 use lucent_shading::phong::{PhongTerms, combine, phong_terms};
@@ -52,32 +52,6 @@ pub struct Whitted<'a> {
     max_depth: u32,
     min_weight: f32,
     shading: Shading,
-}
-
-/// Geometry at a hit, in world space.
-struct Surface {
-    /// Hit point.
-    p: Vec3,
-    /// Unit geometric normal on the side the ray came from.
-    ng: Vec3,
-    /// Unit shading normal, flipped with `ng`.
-    ns: Vec3,
-    /// Whether the ray hit the front (counter-clockwise) face.
-    front: bool,
-    /// Barycentrics (w, u, v) of the three corners.
-    bary: Vec3,
-    /// Corner positions.
-    corners: [Vec3; 3],
-    /// Largest absolute corner coordinate: the scale of `p`'s rounding error.
-    magnitude: f32,
-    /// Corner shading normals (flipped with `ng`), if the mesh has normals.
-    corner_normals: Option<[Vec3; 3]>,
-    /// Interpolated texture coordinates, if the mesh has them.
-    uv: Option<Vec2>,
-    /// Interpolated vertex colour, if the mesh has colours.
-    color: Option<Vec3>,
-    /// Material index.
-    material: u32,
 }
 
 impl<'a> Whitted<'a> {
@@ -115,8 +89,13 @@ impl<'a> Whitted<'a> {
         let Some(hit) = self.scene.bvh.intersect(ray, f32::INFINITY) else {
             return self.scene.environment.background;
         };
-        let surf = self.surface(&hit, ray);
-        let Some(material) = self.scene.materials.get(surf.material as usize) else {
+        let scene = self.scene;
+        // The report's model shades with the normals facing the ray.
+        let Some(mut surf) = SurfaceInteraction::from_hit::<true>(&scene.meshes, &scene.instances, &hit) else {
+            return Vec3::ZERO;
+        };
+        let front = surf.face_forward(ray.dir);
+        let Some(material) = scene.materials.get(surf.instance.material as usize) else {
             return Vec3::ZERO;
         };
         let mut color = self.local::<TRANSMISSIVE>(ray, &surf, material, stats) + material.emission;
@@ -134,7 +113,7 @@ impl<'a> Whitted<'a> {
         let w_transmit = weight * material.kt.max_element();
         if TRANSMISSIVE && material.is_transmissive() && w_transmit >= self.min_weight {
             stats.refraction += 1;
-            let eta = if surf.front { 1.0 / material.ior } else { material.ior };
+            let eta = if front { 1.0 / material.ior } else { material.ior };
             let refracted = refract(ray.dir, surf.ns, eta)
                 .filter(|t| t.dot(surf.ng) < 0.0)
                 .or_else(|| refract(ray.dir, surf.ng, eta));
@@ -152,7 +131,7 @@ impl<'a> Whitted<'a> {
     fn local<const TRANSMISSIVE: bool>(
         &self,
         ray: &Ray,
-        surf: &Surface,
+        surf: &SurfaceInteraction,
         material: &Material,
         stats: &mut RayStats,
     ) -> Vec3 {
@@ -204,7 +183,7 @@ impl<'a> Whitted<'a> {
     fn terms(
         &self,
         ray: &Ray,
-        surf: &Surface,
+        surf: &SurfaceInteraction,
         material: &Material,
         light: &lucent_shading::Light,
         ls: &LightSample,
@@ -228,7 +207,12 @@ impl<'a> Whitted<'a> {
     /// surface, the product of `kt` over translucent crossings otherwise.
     /// Without `TRANSMISSIVE` materials every surface is opaque, so the
     /// first one met decides (an any-hit query).
-    fn shadow<const TRANSMISSIVE: bool>(&self, surf: &Surface, ls: &LightSample, stats: &mut RayStats) -> Vec3 {
+    fn shadow<const TRANSMISSIVE: bool>(
+        &self,
+        surf: &SurfaceInteraction,
+        ls: &LightSample,
+        stats: &mut RayStats,
+    ) -> Vec3 {
         stats.shadow += 1;
         let side = if ls.to_light.dot(surf.ng) >= 0.0 {
             surf.ng
@@ -261,80 +245,6 @@ impl<'a> Whitted<'a> {
         });
         transmittance
     }
-
-    /// World-space geometry of a hit.
-    ///
-    /// Always inlined, as [`Whitted::local`] is: with one caller per
-    /// specialised variant of `trace` the compiler would call them instead,
-    /// about 1% more instructions per ray (cachegrind, Cornell box).
-    #[inline(always)]
-    fn surface(&self, hit: &SceneHit, ray: &Ray) -> Surface {
-        let inst = &self.scene.instances[hit.instance as usize];
-        let mesh = &self.scene.meshes[inst.mesh as usize];
-        let idx = mesh.indices()[hit.prim as usize];
-        let bary = Vec3::new(1.0 - hit.u - hit.v, hit.u, hit.v);
-        let obj = mesh.triangle(hit.prim as usize);
-        let corners = obj.map(|p| inst.world_from_object.transform_point3(p));
-        let p = barycentric(corners, bary);
-        let ng_raw = (inst.normal_from_object * triangle_normal(obj)).normalize_or_zero();
-        let front = ray.dir.dot(ng_raw) < 0.0;
-        let flip = if front { 1.0 } else { -1.0 };
-        let ng = ng_raw * flip;
-        let reads = inst.reads;
-        let corner_normals = mesh.normals().filter(|_| reads.normals).map(|n| {
-            idx.map(|i| {
-                let w = (inst.normal_from_object * n[i as usize]).normalize_or_zero() * flip;
-                if w == Vec3::ZERO { ng } else { w }
-            })
-        });
-        let ns = corner_normals
-            .map(|n| barycentric(n, bary).normalize_or_zero())
-            .filter(|n| *n != Vec3::ZERO)
-            .unwrap_or(ng);
-        let uv = if reads.uvs {
-            mesh.uvs().map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary))
-        } else {
-            None
-        };
-        let color = if reads.colors {
-            mesh.colors().map(|c| barycentric(idx.map(|i| c[i as usize]), bary))
-        } else {
-            None
-        };
-        let magnitude = corners.iter().fold(0.0f32, |m, c| m.max(c.abs().max_element()));
-        Surface {
-            p,
-            magnitude,
-            ng,
-            ns,
-            front,
-            bary,
-            corners,
-            corner_normals,
-            uv,
-            color,
-            material: inst.material,
-        }
-    }
-}
-
-impl Surface {
-    /// `q` (the hit point or a point near it) moved off this surface to the
-    /// side of `n`, by a distance scaled to the triangle's coordinates.
-    #[inline]
-    fn offset(&self, q: Vec3, n: Vec3) -> Vec3 {
-        offset_ray_origin_scaled(q, n, self.magnitude)
-    }
-}
-
-/// `w a + u b + v c` for corner values `[a, b, c]` and barycentrics
-/// `(w, u, v)`.
-#[inline]
-fn barycentric<T>([a, b, c]: [T; 3], bary: Vec3) -> T
-where
-    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
-{
-    a * bary.x + b * bary.y + c * bary.z
 }
 
 /// Two hits of one instance closer than this (relative to their distance)
@@ -378,7 +288,7 @@ impl Crossings {
 /// the Shadow Terminator", Ray Tracing Gems II, ch. 4). Shadow rays start
 /// here so that facets do not shadow their neighbours where smooth shading
 /// says the surface is lit (black blotches near the terminator).
-fn smooth_point(surf: &Surface) -> Vec3 {
+fn smooth_point(surf: &SurfaceInteraction) -> Vec3 {
     let Some(normals) = surf.corner_normals else {
         return surf.p;
     };
@@ -394,7 +304,7 @@ fn smooth_point(surf: &Surface) -> Vec3 {
 
 /// Mirror direction about the shading normal, or about the geometric normal
 /// when the shading normal would send the ray into the surface.
-fn mirror_dir(d: Vec3, surf: &Surface) -> Vec3 {
+fn mirror_dir(d: Vec3, surf: &SurfaceInteraction) -> Vec3 {
     let r = reflect(d, surf.ns);
     if r.dot(surf.ng) > 0.0 { r } else { reflect(d, surf.ng) }
 }

@@ -451,18 +451,17 @@ fn shadow_rays_through_a_shared_edge_attenuate_once() {
     let whitted = Whitted::new(&rs, &settings);
     let at = |x: f32, z: f32| {
         let p = Vec3::new(x, 0.0, z);
-        let surf = Surface {
+        let surf = SurfaceInteraction {
             p,
             ng: Vec3::Y,
             ns: Vec3::Y,
-            front: true,
             bary: Vec3::new(1.0, 0.0, 0.0),
             corners: [p; 3],
             magnitude: 1.0,
             corner_normals: None,
             uv: None,
             color: None,
-            material: 0,
+            instance: &rs.instances[0],
         };
         let ls = LightSample {
             to_light: Vec3::Y,
