@@ -57,6 +57,14 @@ pub fn place_scene(scene: &mut Scene, scale: f32, translate: Vec3) {
                 // Intensity falls off with the squared distance.
                 *intensity *= scale * scale;
             }
+            // A spot moves like a point light; a uniform scale keeps its
+            // direction and cones.
+            Light::Spot {
+                position, intensity, ..
+            } => {
+                *position = m.transform_point3(*position);
+                *intensity *= scale * scale;
+            }
             // Direction and irradiance do not depend on where the scene is.
             Light::Directional { .. } => {}
         }

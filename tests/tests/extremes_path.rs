@@ -40,6 +40,8 @@ enum Lighting {
     Area,
     /// A point light under the ceiling.
     Point,
+    /// A spot light under the ceiling, pointing down.
+    Spot,
     /// A directional light shining in through the open front.
     Directional,
     /// The constant background, through the open front.
@@ -47,9 +49,10 @@ enum Lighting {
 }
 
 /// Every kind, each a case of the suite.
-const ALL: [Lighting; 4] = [
+const ALL: [Lighting; 5] = [
     Lighting::Area,
     Lighting::Point,
+    Lighting::Spot,
     Lighting::Directional,
     Lighting::Background,
 ];
@@ -71,6 +74,7 @@ fn lighting_of(scene: &Scene) -> Vec<Lighting> {
     for light in scene.world.query::<&Light>().iter() {
         found.push(match light {
             Light::Point { .. } => Lighting::Point,
+            Light::Spot { .. } => Lighting::Spot,
             Light::Directional { .. } => Lighting::Directional,
         });
     }
@@ -108,6 +112,18 @@ fn cornell_lit_by(kind: Lighting) -> Scene {
                 Light::Point {
                     position: Vec3::new(0.1, 0.8, 0.2),
                     intensity: Vec3::splat(3.0),
+                },
+            );
+        }
+        Lighting::Spot => {
+            scene.add_light(
+                "spot",
+                Light::Spot {
+                    position: Vec3::new(0.1, 0.8, 0.2),
+                    direction: Vec3::new(0.1, -1.0, 0.0).normalize(),
+                    intensity: Vec3::splat(6.0),
+                    inner_cone: 0.3,
+                    outer_cone: 0.7,
                 },
             );
         }

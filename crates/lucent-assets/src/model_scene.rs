@@ -96,8 +96,11 @@ pub fn surround(scene: &mut Scene, report: &mut LoadReport, path: &Path, what: S
         let (center, radius) = if bounds.is_empty() {
             (Vec3::ZERO, 3.0)
         } else {
-            let sphere = 0.5 * bounds.extent().length();
-            (bounds.center(), 1.1 * sphere / (0.5 * fov_y_deg.to_radians()).sin())
+            // The largest half extent fills about 80% of the picture's
+            // height, seen from the front of the bounds.
+            let half = 0.5 * bounds.extent();
+            let fill = 1.25 * half.max_element() / (0.5 * fov_y_deg.to_radians()).tan();
+            (bounds.center(), fill + half.z)
         };
         let rig = OrbitRig {
             center,

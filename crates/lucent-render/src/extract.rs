@@ -52,6 +52,8 @@ pub struct VertexReads {
     pub uvs: bool,
     /// Vertex colours, which tint the diffuse (and ambient) colour.
     pub colors: bool,
+    /// Vertex tangents, for the material's normal map.
+    pub tangents: bool,
 }
 
 impl VertexReads {
@@ -59,8 +61,9 @@ impl VertexReads {
     pub fn of(mesh: &TriMesh, material: &Material, all: bool) -> VertexReads {
         VertexReads {
             normals: mesh.normals().is_some(),
-            uvs: mesh.uvs().is_some() && (all || material.diffuse_map.is_some()),
+            uvs: mesh.uvs().is_some() && (all || material.is_textured()),
             colors: mesh.colors().is_some(),
+            tangents: mesh.tangents().is_some() && (all || material.normal_map.is_some()),
         }
     }
 }
@@ -162,7 +165,7 @@ impl SceneFeatures {
             };
             f.transmissive |= m.is_transmissive();
             f.reflective |= m.is_reflective();
-            f.textured |= m.diffuse_map.is_some() && mesh.uvs().is_some();
+            f.textured |= m.is_textured() && mesh.uvs().is_some();
             f.emissive |= emits(m);
             f.smooth_normals |= mesh.normals().is_some();
             f.vertex_colors |= mesh.colors().is_some();
@@ -604,6 +607,7 @@ mod tests {
             normals: true,
             uvs: false,
             colors: false,
+            tangents: false,
         };
         assert!(rs.instances.iter().all(|i| i.reads == reads));
         // No emitter: no per-instance emitter table.

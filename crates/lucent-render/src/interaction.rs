@@ -12,7 +12,7 @@
 
 use crate::RenderInstance;
 use lucent_accel::SceneHit;
-use lucent_geom::{TriMesh, Vec2, Vec3, offset_ray_origin_scaled, triangle_normal};
+use lucent_geom::{TriMesh, Vec2, Vec3, Vec4, offset_ray_origin_scaled, triangle_normal};
 use std::sync::Arc;
 
 /// A point on an instance's triangle, in render space.
@@ -39,6 +39,10 @@ pub struct SurfaceInteraction<'a> {
     pub uv: Option<Vec2>,
     /// Interpolated vertex colour, if the instance reads it.
     pub color: Option<Vec3>,
+    /// Interpolated vertex tangent in render space (`w`: the bitangent's
+    /// handedness), if the instance reads tangents (its material has a
+    /// normal map).
+    pub tangent: Option<Vec4>,
     /// The instance hit: its material and transforms.
     pub instance: &'a RenderInstance,
 }
@@ -98,6 +102,11 @@ impl<'a> SurfaceInteraction<'a> {
             .colors()
             .filter(|_| reads.colors)
             .map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
+        let tangent = mesh.tangents().filter(|_| reads.tangents).map(|t| {
+            let t4 = barycentric(idx.map(|i| t[i as usize]), bary);
+            let dir = instance.render_from_object.transform_vector3(t4.truncate());
+            dir.extend(if t4.w < 0.0 { -1.0 } else { 1.0 })
+        });
         Some(SurfaceInteraction {
             p: barycentric(corners, bary),
             ng,
@@ -108,6 +117,7 @@ impl<'a> SurfaceInteraction<'a> {
             magnitude: corners.iter().fold(0.0f32, |m, c| m.max(c.abs().max_element())),
             uv,
             color,
+            tangent,
             instance,
         })
     }
@@ -126,6 +136,26 @@ impl<'a> SurfaceInteraction<'a> {
             }
         }
         front
+    }
+
+    /// The shading normal bent by `material`'s normal map at this point
+    /// (tangent space: the interpolated tangent, made orthogonal to `ns`,
+    /// and the bitangent `w ns x t`), or `ns` unchanged without a map,
+    /// UVs or a tangent, or where the bent normal would face the other
+    /// side of the surface from `ns`.
+    #[inline]
+    pub fn mapped_normal(&self, material: &lucent_shading::Material) -> Vec3 {
+        let (Some(t), Some(local)) = (self.tangent, material.tangent_space_normal(self.uv)) else {
+            return self.ns;
+        };
+        let Some(tangent) = (t.truncate() - self.ns * self.ns.dot(t.truncate())).try_normalize() else {
+            return self.ns;
+        };
+        let bitangent = t.w * self.ns.cross(tangent);
+        match (tangent * local.x + bitangent * local.y + self.ns * local.z).try_normalize() {
+            Some(n) if n.dot(self.ng) * self.ns.dot(self.ng) > 0.0 => n,
+            _ => self.ns,
+        }
     }
 
     /// `q` (the point or one near it) moved off this surface to the side
@@ -171,6 +201,7 @@ mod tests {
                 normals: true,
                 uvs: true,
                 colors: false,
+                tangents: false,
             },
         }
     }
@@ -230,6 +261,46 @@ mod tests {
         assert!(!back.face_forward(Vec3::Z));
         assert_eq!((back.ng, back.ns), (-si.ng, -si.ns));
         assert_eq!(back.corner_normals.map(|n| n.map(|v| -v)), si.corner_normals);
+    }
+
+    #[test]
+    fn normal_maps_bend_the_shading_normal_in_the_tangent_frame() {
+        use lucent_shading::{Material, Texture};
+        let meshes = [tri()];
+        let instances = [placed(Affine3A::IDENTITY)];
+        let Some(mut si) = SurfaceInteraction::from_hit::<false>(&meshes, &instances, &hit(0, 0)) else {
+            panic!("hit")
+        };
+        si.ns = Vec3::Z;
+        si.tangent = Some(Vec4::new(1.0, 0.0, 0.0, 1.0));
+        let map = |c: Vec3| Material {
+            normal_map: Texture::new(1, 1, vec![c]).map(Arc::new).ok(),
+            ..Material::default()
+        };
+        // The flat texel (0.5, 0.5, 1) leaves the normal alone; (1, 0.5, 1)
+        // tilts it 45 degrees towards the tangent, (0.5, 1, 1) towards the
+        // bitangent w (n x t) = +y, and w = -1 mirrors that.
+        assert!(
+            si.mapped_normal(&map(Vec3::new(0.5, 0.5, 1.0)))
+                .abs_diff_eq(Vec3::Z, 1e-6)
+        );
+        let s = std::f32::consts::FRAC_1_SQRT_2;
+        assert!(
+            si.mapped_normal(&map(Vec3::new(1.0, 0.5, 1.0)))
+                .abs_diff_eq(Vec3::new(s, 0.0, s), 1e-6)
+        );
+        assert!(
+            si.mapped_normal(&map(Vec3::new(0.5, 1.0, 1.0)))
+                .abs_diff_eq(Vec3::new(0.0, s, s), 1e-6)
+        );
+        si.tangent = Some(Vec4::new(1.0, 0.0, 0.0, -1.0));
+        assert!(
+            si.mapped_normal(&map(Vec3::new(0.5, 1.0, 1.0)))
+                .abs_diff_eq(Vec3::new(0.0, -s, s), 1e-6)
+        );
+        // No tangent or no UVs: the shading normal as it is.
+        si.tangent = None;
+        assert_eq!(si.mapped_normal(&map(Vec3::new(1.0, 0.5, 1.0))), Vec3::Z);
     }
 
     #[test]

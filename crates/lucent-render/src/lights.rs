@@ -21,7 +21,7 @@ use crate::RenderInstance;
 use crate::interaction::SurfaceInteraction;
 use lucent_accel::SceneHit;
 use lucent_geom::{Ray, TriMesh, Vec2, Vec3, offset_ray_origin_scaled};
-use lucent_shading::{Light, Material};
+use lucent_shading::{Light, Material, Texture};
 use std::sync::Arc;
 
 /// Shadow rays stop this fraction short of the point sampled on a light,
@@ -58,6 +58,15 @@ pub struct Emitter {
     /// Largest corner coordinate magnitude, which scales the offset of a
     /// shadow ray's end off the triangle ([`offset_ray_origin_scaled`]).
     pub magnitude: f32,
+    /// Texture coordinates of the corners (zero without an emission map).
+    pub uv: [Vec2; 3],
+    /// Index of the material's emission map in the set's maps, or `NONE`.
+    pub map: u32,
+    /// Mean of the emission map over the triangle (one without a map): the
+    /// emitted power is estimated from `radiance * map_mean`.
+    pub map_mean: Vec3,
+    /// Whether both sides emit (glTF `doubleSided`).
+    pub two_sided: bool,
 }
 
 /// A point chosen on a light, as seen from a shading point.
@@ -125,6 +134,8 @@ impl LightSample {
 #[derive(Clone, Debug, Default)]
 pub struct LightSet {
     emitters: Vec<Emitter>,
+    /// Emission maps the emitters refer to.
+    maps: Vec<Arc<Texture>>,
     lights: Vec<Light>,
     /// Per instance: index of its first emitter, or `NONE`.
     instance_first: Vec<u32>,
@@ -147,6 +158,7 @@ impl LightSet {
         scene_radius: f32,
     ) -> LightSet {
         let mut emitters = Vec::new();
+        let mut maps: Vec<Arc<Texture>> = Vec::new();
         let mut instance_first = Vec::with_capacity(instances.len());
         for (i, inst) in instances.iter().enumerate() {
             let (Some(mesh), Some(material)) = (meshes.get(inst.mesh as usize), materials.get(inst.material as usize))
@@ -160,7 +172,23 @@ impl LightSet {
             }
             let emission = material.emission.max(Vec3::ZERO);
             instance_first.push(emitters.len() as u32);
+            let uvs = mesh.uvs();
+            let map = match (&material.emission_map, uvs) {
+                (Some(m), Some(_)) => {
+                    maps.push(m.clone());
+                    (maps.len() - 1) as u32
+                }
+                _ => NONE,
+            };
             for t in 0..mesh.n_triangles() {
+                let uv = match (uvs, mesh.indices().get(t)) {
+                    (Some(uvs), Some(idx)) => idx.map(|i| uvs[i as usize]),
+                    _ => [Vec2::ZERO; 3],
+                };
+                let map_mean = match maps.get(map as usize) {
+                    Some(tex) if map != NONE => triangle_mean(tex, uv),
+                    _ => Vec3::ONE,
+                };
                 // The triangle as the integrators see it, at its centroid:
                 // the same corners and geometric normal, and the shading
                 // normal there saying which side emits, so the emitting side
@@ -184,6 +212,10 @@ impl LightSet {
                             area,
                             radiance: emission,
                             magnitude: si.magnitude,
+                            uv,
+                            map,
+                            map_mean,
+                            two_sided: material.double_sided,
                         })
                     })
                     .unwrap_or(Emitter {
@@ -194,6 +226,10 @@ impl LightSet {
                         area: 0.0,
                         radiance: emission,
                         magnitude: 0.0,
+                        uv,
+                        map,
+                        map_mean,
+                        two_sided: false,
                     });
                 emitters.push(emitter);
             }
@@ -206,7 +242,10 @@ impl LightSet {
         };
         let power = emitters
             .iter()
-            .map(|e| std::f32::consts::PI * e.area * lum(e.radiance))
+            .map(|e| {
+                let sides = if e.two_sided { 2.0 } else { 1.0 };
+                sides * std::f32::consts::PI * e.area * lum(e.radiance * e.map_mean)
+            })
             .chain(lights.iter().map(|l| match (l.power(), *l) {
                 (Some(power), _) => lum(power),
                 (None, Light::Directional { intensity, .. }) => std::f32::consts::PI * r * r * lum(intensity).max(0.0),
@@ -234,6 +273,7 @@ impl LightSet {
         };
         LightSet {
             emitters,
+            maps,
             lights: lights.to_vec(),
             instance_first,
             cdf,
@@ -250,6 +290,7 @@ impl LightSet {
     pub fn bytes(&self) -> usize {
         self.emitters.len() * size_of::<Emitter>()
             + self.lights.len() * size_of::<Light>()
+            + self.maps.len() * size_of::<Arc<Texture>>()
             + self.instance_first.len() * size_of::<u32>()
             + (self.cdf.len() + self.prob.len()) * size_of::<f32>()
     }
@@ -272,11 +313,19 @@ impl LightSet {
     }
 
     /// Radiance that emitter `e` sends along `wo` (the unit direction from
-    /// the light towards the viewer): its radiance on the emitting side,
-    /// black behind.
+    /// the light towards the viewer) from the point with texture
+    /// coordinates `uv`: its radiance times its emission map on the
+    /// emitting side (both for a two-sided one), black behind.
     #[inline]
-    pub fn emitted(e: &Emitter, wo: Vec3) -> Vec3 {
-        if e.n.dot(wo) > 0.0 { e.radiance } else { Vec3::ZERO }
+    pub fn emitted(&self, e: &Emitter, wo: Vec3, uv: Option<Vec2>) -> Vec3 {
+        if !(e.two_sided || e.n.dot(wo) > 0.0) {
+            return Vec3::ZERO;
+        }
+        match (self.maps.get(e.map as usize), uv) {
+            (Some(tex), Some(uv)) => e.radiance * tex.sample_bilinear(uv),
+            (Some(_), None) => e.radiance * e.map_mean,
+            _ => e.radiance,
+        }
     }
 
     /// Solid-angle density with which [`LightSet::sample`] picks the point
@@ -322,17 +371,24 @@ impl LightSet {
                 return None;
             }
             let wi = d / dist;
-            let cos = -e.n.dot(wi);
+            let cos = if e.two_sided { e.n.dot(wi).abs() } else { -e.n.dot(wi) };
             if cos <= 0.0 {
                 return None;
             }
+            let value = match self.maps.get(e.map as usize) {
+                Some(tex) => {
+                    let uv = e.uv[0] * (1.0 - b1 - b2) + e.uv[1] * b1 + e.uv[2] * b2;
+                    e.radiance * tex.sample_bilinear(uv)
+                }
+                None => e.radiance,
+            };
             return Some(LightSample {
                 wi,
                 distance: dist,
                 point,
                 normal: e.n,
                 magnitude: e.magnitude,
-                value: e.radiance,
+                value,
                 pdf: p * dist2 / (e.area * cos),
                 delta: false,
             });
@@ -350,6 +406,22 @@ impl LightSet {
             delta: true,
         })
     }
+}
+
+/// Mean of `tex` over the triangle with corner coordinates `uv`, from a
+/// fixed set of 12 interior points (the power estimate's texture factor).
+fn triangle_mean(tex: &Texture, uv: [Vec2; 3]) -> Vec3 {
+    const N: usize = 4;
+    let mut sum = Vec3::ZERO;
+    let mut n = 0.0;
+    for i in 0..N {
+        for j in 0..N - i {
+            let (b1, b2) = ((i as f32 + 1.0 / 3.0) / N as f32, (j as f32 + 1.0 / 3.0) / N as f32);
+            sum += tex.sample_bilinear(uv[0] * (1.0 - b1 - b2) + uv[1] * b1 + uv[2] * b2);
+            n += 1.0;
+        }
+    }
+    sum / n
 }
 
 #[cfg(test)]
@@ -404,8 +476,8 @@ mod tests {
             panic!("emitter")
         };
         assert_eq!((e.n, e.area), (-Vec3::Y, 2.0));
-        assert_eq!(LightSet::emitted(e, -Vec3::Y), Vec3::splat(2.0));
-        assert_eq!(LightSet::emitted(e, Vec3::Y), Vec3::ZERO, "one-sided");
+        assert_eq!(set.emitted(e, -Vec3::Y, None), Vec3::splat(2.0));
+        assert_eq!(set.emitted(e, Vec3::Y, None), Vec3::ZERO, "one-sided");
     }
 
     #[test]
@@ -461,5 +533,76 @@ mod tests {
         // Nothing emits: nothing to sample, and no panic.
         let dark = LightSet::new(&meshes, &[Material::default()], &[instance(0, 0)], &[], 1.0);
         assert!(dark.is_empty() && dark.sample(Vec3::ZERO, 0.5, Vec2::ZERO).is_none());
+    }
+}
+
+#[cfg(test)]
+mod emission_map_tests {
+    use super::*;
+    use lucent_geom::{Affine3A, Mat3A};
+
+    #[test]
+    fn emission_maps_scale_radiance_and_power_and_double_sided_emitters_emit_both_ways() {
+        // A quad at y = 1 facing down, u along x; the map's left column is
+        // black, its right column white.
+        let mesh = TriMesh::new(
+            vec![
+                Vec3::new(-1.0, 1.0, -1.0),
+                Vec3::new(1.0, 1.0, -1.0),
+                Vec3::new(1.0, 1.0, 1.0),
+                Vec3::new(-1.0, 1.0, 1.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        )
+        .and_then(|m| m.with_uvs(vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y]))
+        .unwrap_or_else(|e| panic!("{e}"));
+        let map = Texture::new(2, 1, vec![Vec3::ZERO, Vec3::ONE])
+            .map(|mut t| {
+                t.set_wrap(lucent_shading::WrapMode::Clamp);
+                Arc::new(t)
+            })
+            .unwrap_or_else(|e| panic!("{e}"));
+        let material = |double_sided| Material {
+            emission: Vec3::splat(4.0),
+            emission_map: Some(map.clone()),
+            double_sided,
+            ..Material::default()
+        };
+        let inst = RenderInstance {
+            mesh: 0,
+            material: 0,
+            render_from_object: Affine3A::IDENTITY,
+            normal_render_from_object: Mat3A::IDENTITY,
+            reads: crate::VertexReads::default(),
+        };
+        let meshes = [Arc::new(mesh)];
+        let one = LightSet::new(&meshes, &[material(false)], &[inst], &[], 1.0);
+        let Some((_, e)) = one.emitter(0, 0) else {
+            panic!("emitter")
+        };
+        assert_eq!(one.emitted(e, -Vec3::Y, Some(Vec2::new(1.0, 0.5))), Vec3::splat(4.0));
+        assert_eq!(one.emitted(e, -Vec3::Y, Some(Vec2::new(0.0, 0.5))), Vec3::ZERO);
+        assert_eq!(
+            one.emitted(e, Vec3::Y, Some(Vec2::new(1.0, 0.5))),
+            Vec3::ZERO,
+            "one-sided"
+        );
+        assert!(e.map_mean.x > 0.0 && e.map_mean.x < 1.0, "{}", e.map_mean);
+        // A light sample's value is the map at the sampled point.
+        let s = one
+            .sample(Vec3::ZERO, 0.1, Vec2::new(0.9, 0.1))
+            .unwrap_or_else(|| panic!("sample"));
+        let expected = 4.0 * ((s.point.x + 1.0) * 0.5 * 2.0 - 0.5).clamp(0.0, 1.0);
+        assert!((s.value.x - expected).abs() < 1e-4, "{} vs {expected}", s.value.x);
+        let two = LightSet::new(&meshes, &[material(true)], &[inst], &[], 1.0);
+        let Some((_, e2)) = two.emitter(0, 0) else {
+            panic!("emitter")
+        };
+        assert_eq!(two.emitted(e2, Vec3::Y, Some(Vec2::new(1.0, 0.5))), Vec3::splat(4.0));
+        assert!(
+            two.sample(Vec3::new(0.0, 2.0, 0.0), 0.1, Vec2::new(0.9, 0.1)).is_some(),
+            "seen from above"
+        );
+        assert!(one.sample(Vec3::new(0.0, 2.0, 0.0), 0.1, Vec2::new(0.9, 0.1)).is_none());
     }
 }

@@ -22,7 +22,9 @@
 //! sampled as a light). `max_depth` is Mitsuba's: the longest path counted
 //! in segments from the camera, so 0 renders black, 1 shows only emitters
 //! seen directly and 2 adds direct light. Materials give their BSDF through
-//! `Material::bsdf`, with the texture colour and vertex colour as tint; the
+//! `Material::bsdf_at` (the report's terms with the texture colour and
+//! vertex colour as tint, or glTF's metallic-roughness model with its
+//! maps), shaded in the frame of the normal-mapped shading normal; the
 //! report's ambient term does not exist here.
 //!
 //! The tracer is specialised on the scene's
@@ -42,7 +44,6 @@
 
 use crate::flat::FlatBvh;
 use crate::interaction::SurfaceInteraction;
-use crate::lights::LightSet;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3};
@@ -70,7 +71,7 @@ impl<'a> PathTracer<'a> {
         let plain_bsdfs = scene
             .materials
             .iter()
-            .map(|m| m.diffuse_map.is_none().then(|| m.bsdf(Vec3::ONE)))
+            .map(|m| (!m.is_textured()).then(|| m.bsdf_at(None, None)))
             .collect();
         Self {
             scene,
@@ -120,7 +121,7 @@ impl<'a> PathTracer<'a> {
 
             // Emission found by the path itself.
             if EMISSIVE && let Some((index, emitter)) = lights.emitter(sh.instance, sh.prim) {
-                let le = LightSet::emitted(emitter, -ray.dir);
+                let le = lights.emitted(emitter, -ray.dir, hit.uv);
                 if le != Vec3::ZERO {
                     let w = if prev_delta {
                         1.0
@@ -139,15 +140,9 @@ impl<'a> PathTracer<'a> {
             };
             let bsdf = match (self.plain_bsdfs.get(material_index), hit.color) {
                 (Some(Some(bsdf)), None) => *bsdf,
-                _ => {
-                    let mut tint = material.diffuse_tint(hit.uv);
-                    if let Some(c) = hit.color {
-                        tint *= c;
-                    }
-                    material.bsdf(tint)
-                }
+                _ => material.bsdf_at(hit.uv, hit.color),
             };
-            let frame = Frame::from_normal(hit.ns);
+            let frame = Frame::from_normal(hit.mapped_normal(material));
             let wo = frame.to_local(-ray.dir);
 
             // Next-event estimation.

@@ -98,7 +98,7 @@ impl<'a> Whitted<'a> {
         let Some(material) = scene.materials.get(surf.instance.material as usize) else {
             return Vec3::ZERO;
         };
-        let mut color = self.local::<TRANSMISSIVE>(ray, &surf, material, stats) + material.emission;
+        let mut color = self.local::<TRANSMISSIVE>(ray, &surf, material, stats) + material.emission_at(surf.uv);
         if depth >= self.max_depth {
             return color;
         }

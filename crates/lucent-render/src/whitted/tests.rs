@@ -461,6 +461,7 @@ fn shadow_rays_through_a_shared_edge_attenuate_once() {
             corner_normals: None,
             uv: None,
             color: None,
+            tangent: None,
             instance: &rs.instances[0],
         };
         let ls = LightSample {
