@@ -48,6 +48,19 @@ fn cornell_mitsuba_path() {
     assert_image_snapshot!("cornell_mitsuba_path", &film);
 }
 
+/// The glTF scene `res/scenes/pbr-shelf.gltf` (instanced metallic-roughness
+/// cubes, a transformed and mirrored checker texture, a normal map with
+/// MikkTSpace tangents, a double-sided emissive panel, a spot light, the
+/// file's camera) path traced at 96x64, 8 samples per pixel, seed 1.
+#[test]
+fn gltf_pbr_shelf_path() {
+    let scene = load_repo_scene("res/scenes/pbr-shelf.gltf");
+    let film = render_scene(&scene, |s| {
+        (s.width, s.height, s.spp, s.seed) = (96, 64, 8, 1);
+    });
+    assert_image_snapshot!("gltf_pbr_shelf_path", &film);
+}
+
 #[test]
 fn seed_scene_contents() {
     let scene = load_repo_scene("res/scenes/seed.toml");

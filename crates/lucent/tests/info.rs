@@ -62,6 +62,46 @@ fn every_manifest_model_reports_its_triangle_count() {
 }
 
 #[test]
+fn gltf_files_report_their_manifest_triangle_counts() {
+    let dir = repo_root().join("../shared/assets");
+    let Ok(manifest) = std::fs::read_to_string(dir.join("MANIFEST.tsv")) else {
+        eprintln!("skipped: {} is absent", dir.display());
+        return;
+    };
+    let mut checked = 0;
+    for row in manifest.lines().skip(1) {
+        let cols: Vec<&str> = row.split('\t').collect();
+        let (Some(file), Some(counts)) = (cols.first(), cols.get(3)) else {
+            continue;
+        };
+        let Some(tris) = counts
+            .split_whitespace()
+            .find_map(|c| c.strip_prefix("gltf_tris="))
+            .and_then(|n| n.parse::<u64>().ok())
+        else {
+            continue;
+        };
+        match info(&dir.join(file)) {
+            Ok(json) => {
+                assert_eq!(json["kind"], "scene", "{file}");
+                assert_eq!(json["instanced_triangles"].as_u64(), Some(tris), "{file}");
+            }
+            // The boxes are Draco-compressed, which Lucent does not decode:
+            // it must say so, naming the extension.
+            Err((code, stderr)) => {
+                assert_eq!(code, Some(1), "{file}: {stderr}");
+                assert!(
+                    stderr.contains("KHR_draco_mesh_compression is required but not supported"),
+                    "{file}: {stderr}"
+                );
+            }
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 3, "the manifest lists 3 glTF files");
+}
+
+#[test]
 fn mesh_info_lists_attributes_materials_and_warnings() {
     let dir = repo_root().join("../shared/assets");
     if !dir.is_dir() {
