@@ -23,6 +23,7 @@ const TARGETS: &[(&str, &[&str])] = &[
     ("mtl", &["mtl"]),
     ("scene", &[]),
     ("texture", &[]),
+    ("gltf", &["gltf", "glb"]),
 ];
 
 /// Seeds bigger than this are cut (at a line end for text formats), so
@@ -143,7 +144,12 @@ fn seed_corpus(dir: &Path, target: &str) -> Result<PathBuf, String> {
     }
     for seed in &seeds {
         let bytes = std::fs::read(seed).map_err(|e| format!("cannot read {}: {e}", seed.display()))?;
-        let bytes = cut(&bytes, target != "texture");
+        // glTF seeds stay whole: a JSON document cut short does not parse.
+        let bytes = if target == "gltf" {
+            &bytes[..]
+        } else {
+            cut(&bytes, target != "texture")
+        };
         // Name by path so same-named files of different folders both stay.
         let rel = seed
             .strip_prefix(&assets)

@@ -56,7 +56,7 @@ commands:
                            image, 1e6 samples per pixel, 157.5M watertightness rays,
                            the path tracer's bias at 1024 spp; prints every figure
   fuzz [TARGET...] [--runs N] [--time S] [--max-len B] [--rss-mb M] [--no-build]
-                           build the fuzz targets (obj ply mtl scene texture; all
+                           build the fuzz targets (obj ply mtl scene texture gltf; all
                            by default) with cargo-fuzz and run each in turn until
                            N executions (default 10000000) or S seconds (3600);
                            crashes are kept in fuzz/artifacts and fuzzing goes on;

@@ -9,6 +9,12 @@
 //! with the bytes of the loaded mesh arrays. `--generate-triangles N`
 //! first writes a binary PLY grid of at least N triangles to the temp
 //! directory and measures it too.
+//!
+//! A glTF file (`.gltf`, `.glb`) is loaded as a scene twice over: with its
+//! textures decoded and with image decoding skipped
+//! ([`GltfOptions::skip_images`]); MB/s counts every byte read through the
+//! asset source (the document, its buffers and, when decoded, its images).
+//! Its peak memory is not measured.
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -21,7 +27,7 @@ use std::time::Instant;
 /// Arguments of `lucent bench load`.
 #[derive(Args, Debug)]
 pub struct LoadBenchArgs {
-    /// Mesh files (OBJ or PLY) to load.
+    /// Mesh files (OBJ or PLY) or glTF files (.gltf, .glb) to load.
     files: Vec<PathBuf>,
     /// Also generate and measure a binary little-endian PLY grid of at least
     /// this many triangles (written to the temp directory, then removed).
@@ -43,7 +49,12 @@ pub fn run(args: LoadBenchArgs) -> Result<()> {
         bail!("nothing to measure: give mesh files and/or --generate-triangles N");
     }
     for file in &args.files {
-        println!("{}", measure(file, args.reps)?);
+        let ext = file.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+            println!("{}", measure_gltf(file, args.reps)?);
+        } else {
+            println!("{}", measure(file, args.reps)?);
+        }
     }
     if let Some(n) = args.generate_triangles {
         let path = std::env::temp_dir().join(format!("lucent-bench-grid-{}.ply", std::process::id()));
@@ -124,6 +135,53 @@ fn measure(file: &Path, reps: u32) -> Result<String> {
         "peak_over_mesh": peak.map(|p| round(p as f64 / mesh.max(1) as f64, 2)),
     })
     .to_string())
+}
+
+/// An asset source that counts the bytes it serves.
+struct Counting {
+    bytes: std::sync::atomic::AtomicU64,
+}
+
+impl lucent_assets::AssetSource for Counting {
+    fn read(&self, path: &Path) -> Result<std::borrow::Cow<'_, [u8]>, lucent_assets::AssetError> {
+        let b = lucent_assets::FileSystem.read(path)?;
+        self.bytes
+            .fetch_add(b.len() as u64, std::sync::atomic::Ordering::Relaxed);
+        Ok(std::borrow::Cow::Owned(b.into_owned()))
+    }
+}
+
+/// One glTF load through a counting source: seconds, bytes read, triangles.
+fn load_gltf_once(file: &Path, skip_images: bool) -> Result<(f64, u64, usize)> {
+    let source = Counting {
+        bytes: std::sync::atomic::AtomicU64::new(0),
+    };
+    let start = Instant::now();
+    let (scene, _) = lucent_assets::load_gltf_from(&source, file, lucent_assets::GltfOptions { skip_images })?;
+    let secs = start.elapsed().as_secs_f64();
+    let triangles = scene.counts().instanced_triangles;
+    Ok((secs, source.bytes.into_inner(), triangles))
+}
+
+fn measure_gltf(file: &Path, reps: u32) -> Result<String> {
+    let mut out = serde_json::json!({ "file": file.display().to_string(), "reps": reps });
+    for (key, skip) in [("with_textures", false), ("without_textures", true)] {
+        let (_, bytes, triangles) = load_gltf_once(file, skip)?;
+        let mut times = Vec::with_capacity(reps as usize);
+        for _ in 0..reps {
+            times.push(load_gltf_once(file, skip)?.0);
+        }
+        let median = crate::bench_cmd::median(&mut times).max(1e-9);
+        out["triangles"] = triangles.into();
+        out[key] = serde_json::json!({
+            "bytes_read": bytes,
+            "load_s_median": round(median, 5),
+            "load_s_min": round(times.first().copied().unwrap_or(0.0), 5),
+            "load_s_max": round(times.last().copied().unwrap_or(0.0), 5),
+            "mb_s": round(bytes as f64 / 1e6 / median, 1),
+        });
+    }
+    Ok(out.to_string())
 }
 
 fn round(x: f64, digits: i32) -> f64 {
