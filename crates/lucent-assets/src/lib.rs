@@ -32,6 +32,7 @@ mod error;
 mod image_io;
 mod mesh;
 mod mtl;
+mod number;
 mod obj;
 mod ply;
 mod ply_body;

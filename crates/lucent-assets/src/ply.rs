@@ -444,4 +444,6 @@ fn one_line(s: &str) -> String {
 }
 
 #[cfg(test)]
+mod exporter_quirks;
+#[cfg(test)]
 mod tests;

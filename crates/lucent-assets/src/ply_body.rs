@@ -243,11 +243,6 @@ impl<'t> Iterator for Words<'t> {
     }
 }
 
-#[inline]
-fn parse_f32(word: &[u8]) -> Option<f32> {
-    std::str::from_utf8(word).ok()?.parse().ok()
-}
-
 /// A decimal integer (optional sign, at most 18 digits).
 #[inline]
 fn parse_int(word: &[u8]) -> Option<i64> {
@@ -363,7 +358,8 @@ fn parse_ascii_entry(
             PropPlan::Scalar { slot, scale, .. } => {
                 let word = next("a property")?;
                 if let Some(s) = slot {
-                    let v = parse_f32(word).ok_or_else(|| format!("'{}' is not a number", show(word)))?;
+                    let v =
+                        crate::number::parse_f32(word).ok_or_else(|| format!("'{}' is not a number", show(word)))?;
                     rec[s as usize] = v * scale;
                 }
             }
