@@ -36,6 +36,7 @@ mod number;
 mod obj;
 mod ply;
 mod ply_body;
+mod ply_header;
 mod ply_write;
 mod scene_load;
 mod source;
