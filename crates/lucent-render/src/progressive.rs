@@ -546,10 +546,13 @@ mod tests {
             "1 s budget, large passes: {elapsed:.3} s, {} spp, one spp {t1:.3} s",
             out.film.n_samples()
         );
+        // The first sample per pixel is always taken whole, so on a loaded
+        // machine where it alone outlasts the budget, the render ends after
+        // it (one sample) instead: the deadline only cuts later passes.
+        let spp = out.film.n_samples();
         assert!(
-            (0.9..=1.1).contains(&elapsed),
-            "{elapsed:.3} s, {} spp",
-            out.film.n_samples()
+            (0.9..=1.1).contains(&elapsed) || (elapsed > 1.1 && spp == 1),
+            "{elapsed:.3} s, {spp} spp"
         );
     }
 
