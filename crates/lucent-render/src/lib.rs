@@ -52,7 +52,7 @@ pub use extract::{
 };
 pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;
-pub use lucent_scene::{Integrator, RenderSettings, Shading};
+pub use lucent_scene::{Integrator, RenderOverrides, RenderSettings, Shading};
 pub use progressive::{AdaptiveOutput, render_for, render_to_error};
 pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{

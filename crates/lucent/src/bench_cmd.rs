@@ -10,6 +10,7 @@
 use crate::{QualityArgs, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
+use lucent_geom::Named;
 use lucent_render::{ExtractOptions, Integrator, current_threads, extract_with, render, with_threads};
 use lucent_scene::Scene;
 use lucent_scene::components::{MeshRef, Name};

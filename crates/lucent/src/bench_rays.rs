@@ -13,9 +13,9 @@
 
 use crate::bench_cmd::{json_str, median};
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use lucent_accel::{BuildParams, BuildQuality, MeshBvh, TraversalCounts};
-use lucent_geom::{Ray, TriMesh, TriangleTest, Vec3};
+use lucent_geom::{Named, Ray, TriMesh, TriangleTest, Vec3};
 use lucent_render::with_threads;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -43,11 +43,11 @@ pub struct RaysBenchArgs {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
     /// Build quality.
-    #[arg(long, value_enum, default_value_t = QualityArg::Default)]
-    quality: QualityArg,
+    #[arg(long, value_name = "NAME", default_value = "default", value_parser = crate::named::<BuildQuality>())]
+    quality: BuildQuality,
     /// Ray-triangle test.
-    #[arg(long, value_enum, default_value_t = TestArg::Watertight)]
-    test: TestArg,
+    #[arg(long, value_name = "NAME", default_value = "watertight", value_parser = crate::named::<TriangleTest>())]
+    test: TriangleTest,
     /// Compare the closest hits with this hits file (e.g. Embree's).
     #[arg(long, value_name = "FILE")]
     compare_hits: Option<PathBuf>,
@@ -61,34 +61,13 @@ pub struct RaysBenchArgs {
     counts: bool,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum QualityArg {
-    Fast,
-    Default,
-    High,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum TestArg {
-    Watertight,
-    MollerTrumbore,
-}
-
 /// Rays handed to a thread at a time.
 const CHUNK: usize = 4096;
 
 pub fn run(args: RaysBenchArgs) -> Result<()> {
     let mesh = load_peer_mesh(&args.mesh)?;
     let rays = read_rays(&args.rays)?;
-    let quality = match args.quality {
-        QualityArg::Fast => BuildQuality::Fast,
-        QualityArg::Default => BuildQuality::Default,
-        QualityArg::High => BuildQuality::High,
-    };
-    let test = match args.test {
-        TestArg::Watertight => TriangleTest::Watertight,
-        TestArg::MollerTrumbore => TriangleTest::MollerTrumbore,
-    };
+    let (quality, test) = (args.quality, args.test);
     let threads = usize::from(args.threads);
     let params = BuildParams::for_quality(quality);
     // In a pool of `threads` workers started once: one discarded build warms

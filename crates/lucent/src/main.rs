@@ -14,10 +14,11 @@ mod render_cmd;
 mod viewer;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand};
 use lucent_assets::LoadReport;
+use lucent_geom::Named;
 use lucent_render::quality::{self, QualityPreset};
-use lucent_render::{ExtractOptions, RenderSettings};
+use lucent_render::{ExtractOptions, RenderOverrides};
 use lucent_scene::{Integrator, Scene, Shading};
 use std::path::Path;
 use std::process::ExitCode;
@@ -69,26 +70,14 @@ struct QualityArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
     rr_depth: Option<u32>,
     /// Evaluate lighting at the vertices (gouraud) or per pixel (phong).
-    #[arg(long, value_enum)]
-    shading: Option<ShadingArg>,
+    #[arg(long, value_name = "NAME", value_parser = named::<Shading>())]
+    shading: Option<Shading>,
     /// Seed of the per-pixel sample streams.
     #[arg(long)]
     seed: Option<u64>,
     /// Light transport: the report's Whitted model or path tracing.
-    #[arg(long, value_enum)]
-    integrator: Option<IntegratorArg>,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum IntegratorArg {
-    Whitted,
-    Path,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum ShadingArg {
-    Gouraud,
-    Phong,
+    #[arg(long, value_name = "NAME", value_parser = named::<Integrator>())]
+    integrator: Option<Integrator>,
 }
 
 impl QualityArgs {
@@ -97,7 +86,7 @@ impl QualityArgs {
         if let Some(p) = self.preset {
             p.apply(&mut scene.settings);
         }
-        self.apply_flags(&mut scene.settings);
+        self.overrides().apply(&mut scene.settings);
     }
 
     /// How `extract_with` should build the scene: the preset's options, or
@@ -107,36 +96,28 @@ impl QualityArgs {
             .map_or_else(ExtractOptions::default, |p| p.extract_options())
     }
 
-    /// Applies the explicit flags only (not the preset).
-    fn apply_flags(&self, s: &mut RenderSettings) {
-        if let Some((w, h)) = self.size {
-            (s.width, s.height) = (w, h);
-        }
-        if let Some(d) = self.max_depth {
-            s.max_depth = d;
-        }
-        if let Some(w) = self.min_weight {
-            s.min_weight = w;
-        }
-        if let Some(d) = self.rr_depth {
-            s.rr_depth = d;
-        }
-        if let Some(sh) = self.shading {
-            s.shading = match sh {
-                ShadingArg::Gouraud => Shading::Gouraud,
-                ShadingArg::Phong => Shading::Phong,
-            };
-        }
-        if let Some(seed) = self.seed {
-            s.seed = seed;
-        }
-        if let Some(i) = self.integrator {
-            s.integrator = match i {
-                IntegratorArg::Whitted => Integrator::Whitted,
-                IntegratorArg::Path => Integrator::Path,
-            };
+    /// The explicit flags only (not the preset).
+    fn overrides(&self) -> RenderOverrides {
+        RenderOverrides {
+            width: self.size.map(|(w, _)| w),
+            height: self.size.map(|(_, h)| h),
+            max_depth: self.max_depth,
+            min_weight: self.min_weight,
+            rr_depth: self.rr_depth,
+            shading: self.shading,
+            seed: self.seed,
+            integrator: self.integrator,
+            ..RenderOverrides::NONE
         }
     }
+}
+
+/// A flag whose values are a [`Named`] enum's names (listed in `--help`
+/// and in the error for any other value).
+fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(T::NAMES.iter().map(|&(n, _)| n))
+        .try_map(|name| T::from_name(&name).ok_or_else(|| format!("expected {}", T::name_list())))
 }
 
 /// `--help` for `--preset`: every preset with its one-line description.

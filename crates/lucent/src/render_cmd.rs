@@ -4,6 +4,7 @@ use crate::{QualityArgs, check_png_path, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lucent_geom::Named;
 use lucent_render::{
     Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render, with_threads,
 };
