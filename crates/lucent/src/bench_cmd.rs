@@ -11,6 +11,7 @@ use crate::{QualityArgs, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use lucent_geom::Named;
+use lucent_render::metrics::median;
 use lucent_render::{ExtractOptions, Integrator, current_threads, extract_with, render, with_threads};
 use lucent_scene::Scene;
 use lucent_scene::components::{MeshRef, Name};
@@ -31,8 +32,6 @@ enum BenchCommand {
     Render(RenderBenchArgs),
     /// Time mesh loading: MB/s, triangles/s and peak memory per file.
     Load(crate::bench_load::LoadBenchArgs),
-    /// Time the traversal core alone on a ray file (the Embree peer's formats).
-    Rays(crate::bench_rays::RaysBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -64,7 +63,6 @@ pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
         BenchCommand::Render(a) => bench_render(a),
         BenchCommand::Load(a) => crate::bench_load::run(a),
-        BenchCommand::Rays(a) => crate::bench_rays::run(a),
     }
 }
 
@@ -143,30 +141,7 @@ fn remove_object(scene: &mut Scene, object: &str) -> Result<()> {
     Ok(())
 }
 
-/// Median of timings (mean of the middle two for even counts; 0 for none).
-/// Sorts `values` in place, so callers may read the extremes afterwards.
-pub(crate) fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    match values.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => values[n / 2],
-        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
-    }
-}
-
 /// `s` as a JSON string literal, quotes and escapes included.
 pub(crate) fn json_str(s: &str) -> String {
     serde_json::Value::from(s).to_string()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&mut []), 0.0);
-        assert_eq!(median(&mut [9.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 9.0, 1.0, 2.0]), 3.0);
-    }
 }

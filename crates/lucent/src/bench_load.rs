@@ -106,7 +106,7 @@ fn measure(file: &Path, reps: u32) -> Result<String> {
         times.push(start.elapsed().as_secs_f64());
         drop(loaded);
     }
-    let median = crate::bench_cmd::median(&mut times).max(1e-9);
+    let median = lucent_render::metrics::median(&mut times).max(1e-9);
     let peak = peak_in_child(file)?;
     Ok(serde_json::json!({
         "file": file.display().to_string(),

@@ -7,7 +7,6 @@
 
 mod bench_cmd;
 mod bench_load;
-mod bench_rays;
 mod builtin;
 mod info_cmd;
 mod render_cmd;
