@@ -26,12 +26,57 @@ use std::process::ExitCode;
 #[command(
     name = "lucent",
     version,
-    about = "A Whitted ray tracer over an ECS scene, with an interactive viewer.",
+    about = "A CPU ray tracer over an ECS scene (the report's Whitted model or a path tracer), with an interactive viewer.",
     after_help = viewer::CONTROLS
 )]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// Print only errors on stderr (no warnings, progress or notes).
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// Print more on stderr: -v adds timings of each step.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+}
+
+/// The `log` backend: one line per message on stderr, `error:` and
+/// `warning:` prefixed like the rest of the app's messages.
+struct Logger;
+
+impl log::Log for Logger {
+    fn enabled(&self, metadata: &log::Metadata) -> bool {
+        metadata.level() <= log::max_level()
+    }
+
+    fn log(&self, record: &log::Record) {
+        if self.enabled(record.metadata()) {
+            let prefix = match record.level() {
+                log::Level::Error => "error: ",
+                log::Level::Warn => "warning: ",
+                log::Level::Info => "",
+                log::Level::Debug | log::Level::Trace => "note: ",
+            };
+            eprintln!("{prefix}{}", record.args());
+        }
+    }
+
+    fn flush(&self) {}
+}
+
+/// Errors only with `-q`; errors, warnings and notes by default; step
+/// timings with `-v`.
+fn init_logging(quiet: bool, verbose: u8) {
+    static LOGGER: Logger = Logger;
+    let level = match (quiet, verbose) {
+        (true, _) => log::LevelFilter::Error,
+        (false, 0) => log::LevelFilter::Info,
+        (false, 1) => log::LevelFilter::Debug,
+        (false, _) => log::LevelFilter::Trace,
+    };
+    // Fails only if a logger is already set (never here): keep that one.
+    let _ = log::set_logger(&LOGGER);
+    log::set_max_level(level);
 }
 
 #[derive(Subcommand)]
@@ -160,6 +205,7 @@ fn prepare_scene(path: Option<&Path>, quality: &QualityArgs, spp: Option<u32>) -
     let start = std::time::Instant::now();
     let (mut scene, _report, name) = load_scene(path)?;
     let load_s = start.elapsed().as_secs_f64();
+    log::debug!("{name}: loaded in {load_s:.3} s");
     quality.apply(&mut scene);
     if let Some(spp) = spp {
         scene.settings.spp = spp;
@@ -181,7 +227,7 @@ fn load_scene(path: Option<&Path>) -> Result<(Scene, LoadReport, String)> {
         }
     };
     for w in &report.warnings {
-        eprintln!("warning: {w}");
+        log::warn!("{w}");
     }
     Ok((scene, report, name))
 }
@@ -198,17 +244,18 @@ fn run(cli: Cli) -> Result<()> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_logging(cli.quiet, cli.verbose);
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // One line: the error and its causes.
-            eprintln!("error: {e:#}");
+            log::error!("{e:#}");
             ExitCode::FAILURE
         }
     }
 }
 
-/// The output path must be a PNG file.
+/// The output path must be a PNG file that can be written.
 fn check_png_path(path: &Path) -> Result<()> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if ext.as_deref() != Some("png") {
@@ -216,6 +263,22 @@ fn check_png_path(path: &Path) -> Result<()> {
             "{}: only PNG output is supported (use a .png file name)",
             path.display()
         );
+    }
+    check_writable(path)
+}
+
+/// Fails now, not after a long render, when `path` cannot be written (a
+/// missing directory, no permission). Leaves an existing file as it is and
+/// removes the empty file it made to find out.
+fn check_writable(path: &Path) -> Result<()> {
+    let existed = path.exists();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .with_context(|| format!("{}: cannot write the output here", path.display()))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
     }
     Ok(())
 }

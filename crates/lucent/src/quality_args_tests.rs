@@ -34,7 +34,8 @@ fn render_view_and_bench_take_every_preset_by_name() {
             matches!(
                 bench,
                 Ok(Cli {
-                    command: Some(Command::Bench(_))
+                    command: Some(Command::Bench(_)),
+                    ..
                 })
             ),
             "{}",

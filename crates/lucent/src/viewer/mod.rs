@@ -172,7 +172,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     } = app;
     drop(worker);
     if let Source::Script(script, _) = &source {
-        eprintln!(
+        log::info!(
             "soak: {} random inputs over {:.1} s, {} frames displayed, camera finite throughout",
             script.n_inputs,
             start.elapsed().as_secs_f32(),
@@ -478,7 +478,7 @@ fn rig_is_finite(r: &OrbitRig) -> bool {
 }
 
 fn render_hint() -> &'static str {
-    "lucent render res/scenes/seed.toml -o seed.png"
+    "lucent render -o seed.png"
 }
 
 /// Fails early, with a pointer to headless rendering, when there is no
@@ -514,14 +514,14 @@ fn save(pixels: &[u32], width: u32, height: u32, path: &Path) -> Result<()> {
 /// window; reports the outcome on stderr.
 fn save_in_background(pixels: Vec<u32>, width: u32, height: u32, path: PathBuf) {
     let job = move || match save(&pixels, width, height, &path) {
-        Ok(()) => eprintln!("saved {}", path.display()),
-        Err(e) => eprintln!("error: {e:#}"),
+        Ok(()) => log::info!("saved {}", path.display()),
+        Err(e) => log::error!("{e:#}"),
     };
     if let Err(e) = std::thread::Builder::new()
         .name("lucent-screenshot".to_owned())
         .spawn(job)
     {
-        eprintln!("error: cannot save a screenshot: {e}");
+        log::error!("cannot save a screenshot: {e}");
     }
 }
 
