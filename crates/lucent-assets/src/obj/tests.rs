@@ -9,14 +9,14 @@ const QUAD_OBJ: &[u8] = b"mtllib q.mtl\r\nv 0 0 0\r\nv 1 0 0\nv 1 1 0\nv 0 1 0\n
 usemtl shiny\nf 1/1 2/2 3/3 4/4\n";
 const QUAD_MTL: &[u8] = b"newmtl shiny\nKa 0.1 0.1 0.1  # comment\nKd 0.5 0.25 0\nKs 0.9 0.9 0.9\nNs 50\nillum 3\nd 0.75\nNi 1.33\nKe 2 3 4\nPr 0.4\nmap_Kd -s 2 2 1 -o 0.5 0 -clamp on -bm 0.3 tex.png\n";
 
-fn load(files: &[(&str, &'static [u8])], path: &str) -> Result<(Vec<MeshPart>, LoadReport), String> {
-    let src = files
-        .iter()
-        .fold(MemorySource::new(), |s, (name, bytes)| s.with_file(name, bytes));
+fn load(files: &[(&str, &[u8])], path: &str) -> Result<(Vec<MeshPart>, LoadReport), String> {
+    let src = files.iter().fold(MemorySource::new(), |s, (name, bytes)| {
+        s.with_file(name, bytes.to_vec())
+    });
     load_mesh_from(&src, Path::new(path)).map_err(|e| e.to_string())
 }
 
-fn parse_err(text: &'static [u8]) -> Result<(), String> {
+fn parse_err(text: &[u8]) -> Result<(), String> {
     load(&[("t.obj", text)], "t.obj").map(|_| ())
 }
 
@@ -194,8 +194,8 @@ fn vertex_colours_and_attributes_only_when_given() {
 const ROOF: &str = "v 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 0 -1\nv 1 0 -1\n";
 
 fn roof(statements: &str) -> Vec<MeshPart> {
-    let text = format!("{ROOF}{statements}").into_bytes().leak();
-    load(&[("r.obj", text)], "r.obj").map(|(p, _)| p).unwrap_or_default()
+    let text = format!("{ROOF}{statements}").into_bytes();
+    load(&[("r.obj", &text)], "r.obj").map(|(p, _)| p).unwrap_or_default()
 }
 
 #[test]
