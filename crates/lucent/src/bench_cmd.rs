@@ -77,7 +77,7 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
     };
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
-    let json = with_threads(threads, || -> Result<String> {
+    let json = with_threads(threads, || -> Result<serde_json::Value> {
         let t_build = Instant::now();
         let rs = extract_with(&scene, &options).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
@@ -95,28 +95,26 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
             rays = out.stats.total();
         }
         let median = median(&mut times);
-        Ok(format!(
-            "{{\"scene\":{},\"width\":{},\"height\":{},\"spp\":{},\"shading\":\"{}\",\"threads\":{},\
-\"triangles\":{},\"load_s\":{:.4},\"build_s\":{:.4},\"reps\":{},\"render_s_median\":{:.4},\
-\"render_s_min\":{:.4},\"render_s_max\":{:.4},\"rays\":{},\"mrays_s\":{:.3},\"all_features\":{},\"features\":{}}}",
-            json_str(&name),
-            settings.width,
-            settings.height,
-            settings.spp,
-            settings.shading.name(),
-            current_threads(),
-            rs.n_instanced_triangles(),
-            load_s,
-            build_s,
-            args.reps,
-            median,
-            times.first().copied().unwrap_or(0.0),
-            times.last().copied().unwrap_or(0.0),
-            rays,
-            rays as f64 / 1e6 / median.max(1e-9),
-            args.all_features,
-            serde_json::Value::from(rs.features.names()),
-        ))
+        let round = crate::bench_load::round;
+        Ok(serde_json::json!({
+            "scene": name,
+            "width": settings.width,
+            "height": settings.height,
+            "spp": settings.spp,
+            "shading": settings.shading.name(),
+            "threads": current_threads(),
+            "triangles": rs.n_instanced_triangles(),
+            "load_s": round(load_s, 4),
+            "build_s": round(build_s, 4),
+            "reps": args.reps,
+            "render_s_median": round(median, 4),
+            "render_s_min": round(times.first().copied().unwrap_or(0.0), 4),
+            "render_s_max": round(times.last().copied().unwrap_or(0.0), 4),
+            "rays": rays,
+            "mrays_s": round(rays as f64 / 1e6 / median.max(1e-9), 3),
+            "all_features": args.all_features,
+            "features": rs.features.names(),
+        }))
     })??;
     println!("{json}");
     Ok(())
@@ -139,9 +137,4 @@ fn remove_object(scene: &mut Scene, object: &str) -> Result<()> {
         scene.world.despawn(e)?;
     }
     Ok(())
-}
-
-/// `s` as a JSON string literal, quotes and escapes included.
-pub(crate) fn json_str(s: &str) -> String {
-    serde_json::Value::from(s).to_string()
 }

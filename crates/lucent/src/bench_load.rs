@@ -126,7 +126,8 @@ fn measure(file: &Path, reps: u32) -> Result<String> {
     .to_string())
 }
 
-fn round(x: f64, digits: i32) -> f64 {
+/// `x` rounded to `digits` decimals, for the figures of a JSON line.
+pub(crate) fn round(x: f64, digits: i32) -> f64 {
     let s = 10f64.powi(digits);
     (x * s).round() / s
 }
