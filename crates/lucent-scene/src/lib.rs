@@ -37,6 +37,7 @@
 pub mod camera;
 pub mod components;
 mod file;
+pub mod fixtures;
 mod scene;
 mod settings;
 mod transform;
