@@ -9,7 +9,7 @@
 #    random rays) with Embree's closest hits and occlusion results.
 # 2. Traces the same rays with `lucent-bench rays` and compares: hit/miss,
 #    primitive id, t (relative), occlusion; every disagreement is classified
-#    from the mesh in f64 (see crates/lucent/src/bench_rays.rs, `compare`).
+#    from the mesh in f64 (see crates/lucent-bench/src/rays.rs, `compare`).
 #    Prints one JSON line per case; "unexplained" must be 0.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)

@@ -441,6 +441,10 @@ mod tests {
     #[test]
     fn every_build_quality_has_one_name() {
         lucent_geom::assert_table(&[BuildQuality::Fast, BuildQuality::Default, BuildQuality::High]);
+        assert_eq!(
+            <BuildQuality as lucent_geom::Named>::name_list(),
+            "fast, default or high"
+        );
     }
 
     fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
