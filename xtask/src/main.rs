@@ -18,20 +18,9 @@
 mod extremes;
 mod fuzz;
 mod tidy;
+#[cfg(feature = "tradeoff")]
 mod tradeoff;
 mod viewer;
-
-/// Median of a list (mean of the middle two for an even length); NaN when
-/// empty. Shared by the viewer benchmark and the tradeoff report.
-pub(crate) fn median(values: &[f64]) -> f64 {
-    let mut v: Vec<f64> = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
-}
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -81,7 +70,24 @@ fn main() -> ExitCode {
         Some("soak") => viewer::soak(&args[1..]),
         Some("extremes") => extremes::run_full(&args[1..]),
         Some("fuzz") => fuzz::fuzz(&args[1..]),
+        #[cfg(feature = "tradeoff")]
         Some("tradeoff") => tradeoff::tradeoff(&args[1..]),
+        // Built by the `cargo xtask` alias without the feature: run the
+        // release build with it, as `tradeoff` would run itself anyway (only
+        // this task needs a C++ compiler, for nv-flip).
+        #[cfg(not(feature = "tradeoff"))]
+        Some("tradeoff") => run(cargo()
+            .args([
+                "run",
+                "--release",
+                "--quiet",
+                "--package",
+                "xtask",
+                "--features",
+                "tradeoff",
+                "--",
+            ])
+            .args(&args)),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

@@ -27,15 +27,12 @@ pub enum BuildQuality {
     High,
 }
 
-impl BuildQuality {
-    /// Lowercase name (`fast`, `default`, `high`).
-    pub fn name(self) -> &'static str {
-        match self {
-            BuildQuality::Fast => "fast",
-            BuildQuality::Default => "default",
-            BuildQuality::High => "high",
-        }
-    }
+impl lucent_geom::Named for BuildQuality {
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("fast", BuildQuality::Fast),
+        ("default", BuildQuality::Default),
+        ("high", BuildQuality::High),
+    ];
 }
 
 /// Build settings. The defaults suit triangle meshes.
@@ -440,6 +437,15 @@ fn split_median(prims: &mut [PrimRef], cb: &Aabb) -> usize {
 mod tests {
     use super::*;
     use lucent_geom::Pcg32;
+
+    #[test]
+    fn every_build_quality_has_one_name() {
+        lucent_geom::assert_table(&[BuildQuality::Fast, BuildQuality::Default, BuildQuality::High]);
+        assert_eq!(
+            <BuildQuality as lucent_geom::Named>::name_list(),
+            "fast, default or high"
+        );
+    }
 
     fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
         let mut rng = Pcg32::new(seed, 0);

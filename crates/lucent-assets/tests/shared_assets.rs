@@ -121,7 +121,7 @@ fn cornell_boxes_load_with_their_materials() {
 }
 
 fn load_bytes(name: &str, bytes: Vec<u8>) -> Result<(Vec<MeshPart>, LoadReport), String> {
-    let source = MemorySource::new().with_file(name, bytes.leak());
+    let source = MemorySource::new().with_file(name, bytes);
     load_mesh_from(&source, Path::new(name)).map_err(|e| e.to_string())
 }
 

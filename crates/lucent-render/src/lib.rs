@@ -2,10 +2,13 @@
 //!
 //! The spine: [`extract`] flattens a [`Scene`](lucent_scene::Scene) (an ECS
 //! world) into a [`RenderScene`] of plain vectors addressed by `u32`, with a
-//! two-level BVH; [`render_samples`] then traces it with the report's
-//! Whitted integrator ([`whitted`]) into a [`Film`], in parallel over image
-//! rows with rayon. [`progressive`] renders to a time budget or, sampling
-//! adaptively, to an estimated error.
+//! two-level BVH; [`render_samples`] then traces it into a [`Film`], in
+//! parallel over image rows with rayon, with the integrator the settings
+//! name: the report's Whitted model ([`whitted`]) or a path tracer with
+//! next-event estimation and MIS ([`path`]). Both read a hit through one
+//! record ([`interaction`]). [`progressive`] renders to a time budget or,
+//! sampling adaptively, to an estimated error; [`quality`] holds the named
+//! presets.
 //!
 //! Invariants:
 //! - only `extract.rs` sees hecs; the kernel works on [`RenderScene`];
@@ -52,7 +55,7 @@ pub use extract::{
 };
 pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;
-pub use lucent_scene::{Integrator, RenderSettings, Shading};
+pub use lucent_scene::{Integrator, RenderOverrides, RenderSettings, Shading};
 pub use progressive::{AdaptiveOutput, render_for, render_to_error};
 pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{

@@ -248,24 +248,9 @@ fn trace_rows(
 mod tests {
     use super::*;
     use crate::extract;
-    use lucent_geom::{Affine3A, Vec3, shapes};
-    use lucent_scene::Scene;
-    use lucent_scene::components::{Camera, Light, Material, OrbitRig};
 
     fn scene() -> RenderScene {
-        let mut scene = Scene::default();
-        let mesh = scene.add_mesh("ball", shapes::icosphere(2));
-        let mat = scene.add_material("white", Material::default());
-        scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
-        scene.add_light(
-            "sun",
-            Light::Directional {
-                to_light: Vec3::Y,
-                intensity: Vec3::ONE,
-            },
-        );
-        scene.add_camera("cam", Camera::default(), OrbitRig::default());
-        match extract(&scene) {
+        match extract(&lucent_scene::fixtures::ball_under_sun()) {
             Ok(rs) => rs,
             Err(e) => panic!("{e}"),
         }

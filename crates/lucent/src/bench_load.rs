@@ -106,7 +106,7 @@ fn measure(file: &Path, reps: u32) -> Result<String> {
         times.push(start.elapsed().as_secs_f64());
         drop(loaded);
     }
-    let median = crate::bench_cmd::median(&mut times).max(1e-9);
+    let median = lucent_render::metrics::median(&mut times).max(1e-9);
     let peak = peak_in_child(file)?;
     Ok(serde_json::json!({
         "file": file.display().to_string(),
@@ -126,7 +126,8 @@ fn measure(file: &Path, reps: u32) -> Result<String> {
     .to_string())
 }
 
-fn round(x: f64, digits: i32) -> f64 {
+/// `x` rounded to `digits` decimals, for the figures of a JSON line.
+pub(crate) fn round(x: f64, digits: i32) -> f64 {
     let s = 10f64.powi(digits);
     (x * s).round() / s
 }

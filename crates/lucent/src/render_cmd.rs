@@ -1,9 +1,10 @@
 //! `lucent render`: headless rendering to a PNG and/or a linear EXR file.
 
-use crate::{QualityArgs, check_png_path, prepare_scene};
+use crate::{QualityArgs, check_png_path, check_writable, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lucent_geom::Named;
 use lucent_render::{
     Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render, with_threads,
 };
@@ -17,8 +18,8 @@ const MAX_SPP: u32 = 65536;
 /// Arguments of `lucent render`.
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Scene file (TOML).
-    scene: PathBuf,
+    /// Scene file (TOML); the built-in seed scene when omitted.
+    scene: Option<PathBuf>,
     /// Output PNG file: radiance times 2^exposure, clamped to [0, 1], sRGB, 8 bits.
     #[arg(short, long, value_name = "FILE.png", required_unless_present = "exr")]
     output: Option<PathBuf>,
@@ -88,8 +89,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if ext.as_deref() != Some("exr") {
             bail!("{}: the --exr file name must end in .exr", exr.display());
         }
+        check_writable(exr)?;
     }
-    let (mut scene, _name, load_s) = prepare_scene(Some(&args.scene), &args.quality, args.spp)?;
+    let (mut scene, name, load_s) = prepare_scene(args.scene.as_deref(), &args.quality, args.spp)?;
     if args.time_budget.is_some() || args.target_error.is_some() {
         // --spp is the cap here, not the scene's spp.
         scene.settings.spp = args.spp.unwrap_or(MAX_SPP);
@@ -98,18 +100,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let threads = args.threads.map_or(0, usize::from);
     let (rs, build_s, out, n_threads, refined) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
-        let rs = extract_with(&scene, &args.quality.extract_options())
-            .with_context(|| format!("{}", args.scene.display()))?;
+        let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
             // The path tracer's one-level tree is built on demand; build it
             // here so it counts as BVH time, not render time.
             let _ = rs.flat_bvh();
         }
         let build_s = t_build.elapsed().as_secs_f64();
+        log::debug!("BVH built in {build_s:.3} s");
         let bar = ProgressBar::new(settings.height as u64).with_style(
             ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
+        if !log::log_enabled!(log::Level::Info) {
+            bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+        }
         let (out, refined) = render_mode(&rs, &settings, &args, &bar);
         bar.finish_and_clear();
         Ok((rs, build_s, out, current_threads(), refined))

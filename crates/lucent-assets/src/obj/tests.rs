@@ -9,14 +9,14 @@ const QUAD_OBJ: &[u8] = b"mtllib q.mtl\r\nv 0 0 0\r\nv 1 0 0\nv 1 1 0\nv 0 1 0\n
 usemtl shiny\nf 1/1 2/2 3/3 4/4\n";
 const QUAD_MTL: &[u8] = b"newmtl shiny\nKa 0.1 0.1 0.1  # comment\nKd 0.5 0.25 0\nKs 0.9 0.9 0.9\nNs 50\nillum 3\nd 0.75\nNi 1.33\nKe 2 3 4\nPr 0.4\nmap_Kd -s 2 2 1 -o 0.5 0 -clamp on -bm 0.3 tex.png\n";
 
-fn load(files: &[(&str, &'static [u8])], path: &str) -> Result<(Vec<MeshPart>, LoadReport), String> {
-    let src = files
-        .iter()
-        .fold(MemorySource::new(), |s, (name, bytes)| s.with_file(name, bytes));
+fn load(files: &[(&str, &[u8])], path: &str) -> Result<(Vec<MeshPart>, LoadReport), String> {
+    let src = files.iter().fold(MemorySource::new(), |s, (name, bytes)| {
+        s.with_file(name, bytes.to_vec())
+    });
     load_mesh_from(&src, Path::new(path)).map_err(|e| e.to_string())
 }
 
-fn parse_err(text: &'static [u8]) -> Result<(), String> {
+fn parse_err(text: &[u8]) -> Result<(), String> {
     load(&[("t.obj", text)], "t.obj").map(|_| ())
 }
 
@@ -193,7 +193,7 @@ fn msvc_and_other_non_finite_spellings_reject_the_vertex() {
         "-INFINITY",
     ] {
         let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\nf 1 2 4\n");
-        let (parts, report) = load(&[("t.obj", text.into_bytes().leak())], "t.obj").unwrap_or_default();
+        let (parts, report) = load(&[("t.obj", &text.into_bytes())], "t.obj").unwrap_or_default();
         let m = parts.first().map(|p| &p.mesh);
         assert_eq!(
             m.map(|m| (m.positions().len(), m.n_triangles())),
@@ -217,7 +217,7 @@ fn msvc_and_other_non_finite_spellings_reject_the_vertex() {
     for word in ["3.1+e2", "1.2.3", "1.#INFX", "1.#", "1.#NAN", "1.#INF01"] {
         let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nf 1 2 3\n");
         assert_eq!(
-            parse_err(text.into_bytes().leak()),
+            parse_err(&text.into_bytes()),
             Err(format!("t.obj:3: '{word}' is not a number")),
             "{word}"
         );
@@ -247,8 +247,8 @@ fn vertex_colours_and_attributes_only_when_given() {
 const ROOF: &str = "v 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 0 -1\nv 1 0 -1\n";
 
 fn roof(statements: &str) -> Vec<MeshPart> {
-    let text = format!("{ROOF}{statements}").into_bytes().leak();
-    load(&[("r.obj", text)], "r.obj").map(|(p, _)| p).unwrap_or_default()
+    let text = format!("{ROOF}{statements}").into_bytes();
+    load(&[("r.obj", &text)], "r.obj").map(|(p, _)| p).unwrap_or_default()
 }
 
 #[test]

@@ -12,16 +12,16 @@ use std::io::Read;
 /// Serves one file through a reader that gives at most `chunk` bytes per
 /// read, so line ends fall across the loader's reads.
 struct Trickle {
-    bytes: &'static [u8],
+    bytes: Vec<u8>,
     chunk: usize,
 }
 
-struct TrickleReader {
-    rest: &'static [u8],
+struct TrickleReader<'a> {
+    rest: &'a [u8],
     chunk: usize,
 }
 
-impl Read for TrickleReader {
+impl Read for TrickleReader<'_> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.chunk.min(buf.len()).min(self.rest.len());
         buf[..n].copy_from_slice(&self.rest[..n]);
@@ -32,14 +32,14 @@ impl Read for TrickleReader {
 
 impl AssetSource for Trickle {
     fn read(&self, _: &Path) -> Result<Cow<'_, [u8]>, AssetError> {
-        Ok(Cow::Borrowed(self.bytes))
+        Ok(Cow::Borrowed(&self.bytes))
     }
 
     fn open(&self, _: &Path) -> Result<AssetReader<'_>, AssetError> {
         Ok(AssetReader {
             len: self.bytes.len() as u64,
             reader: Box::new(TrickleReader {
-                rest: self.bytes,
+                rest: &self.bytes,
                 chunk: self.chunk,
             }),
         })
@@ -47,7 +47,7 @@ impl AssetSource for Trickle {
 }
 
 fn load(bytes: Vec<u8>) -> Result<(Vec<MeshPart>, LoadReport), String> {
-    let src = MemorySource::new().with_file("t.ply", bytes.leak());
+    let src = MemorySource::new().with_file("t.ply", bytes);
     load_mesh_from(&src, Path::new("t.ply")).map_err(|e| e.to_string())
 }
 
@@ -373,7 +373,6 @@ fn a_crlf_split_across_reads_is_one_line_end() {
             - 2;
         let file = make(4095 - at);
         assert_eq!(&file[4095..4097], b"\r\n");
-        let file: &'static [u8] = file.leak();
         load_mesh_from(&Trickle { bytes: file, chunk: 1 }, Path::new("t.ply"))
             .map(|(parts, _)| (parts[0].mesh.positions()[0], parts[0].mesh.n_triangles()))
             .map_err(|e| e.to_string())

@@ -1,4 +1,4 @@
-//! `lucent bench rays`: the traversal core alone, on the Embree peer's ray
+//! `lucent-bench rays`: the traversal core alone, on the Embree peer's ray
 //! sets, in the peer's file formats (`../shared/peers/embree`).
 //!
 //! Loads a mesh with the peer's conventions (polygons fanned in file order,
@@ -11,17 +11,17 @@
 //! the closest hits against another tracer's hits file and classifies every
 //! disagreement (see [`compare`]).
 
-use crate::bench_cmd::{json_str, median};
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use lucent_accel::{BuildParams, BuildQuality, MeshBvh, TraversalCounts};
-use lucent_geom::{Ray, TriMesh, TriangleTest, Vec3};
+use lucent_geom::{Named, Ray, TriMesh, TriangleTest, Vec3};
+use lucent_render::metrics::median;
 use lucent_render::with_threads;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-/// Arguments of `lucent bench rays`.
+/// Arguments of `lucent-bench rays`.
 #[derive(Args, Debug)]
 pub struct RaysBenchArgs {
     /// Mesh file (.ply or .obj); all parts are concatenated in file order.
@@ -43,11 +43,11 @@ pub struct RaysBenchArgs {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
     /// Build quality.
-    #[arg(long, value_enum, default_value_t = QualityArg::Default)]
-    quality: QualityArg,
+    #[arg(long, value_name = "NAME", default_value = "default", value_parser = named::<BuildQuality>())]
+    quality: BuildQuality,
     /// Ray-triangle test.
-    #[arg(long, value_enum, default_value_t = TestArg::Watertight)]
-    test: TestArg,
+    #[arg(long, value_name = "NAME", default_value = "watertight", value_parser = named::<TriangleTest>())]
+    test: TriangleTest,
     /// Compare the closest hits with this hits file (e.g. Embree's).
     #[arg(long, value_name = "FILE")]
     compare_hits: Option<PathBuf>,
@@ -61,17 +61,16 @@ pub struct RaysBenchArgs {
     counts: bool,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum QualityArg {
-    Fast,
-    Default,
-    High,
+/// A flag whose values are a [`Named`] enum's names.
+fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(T::NAMES.iter().map(|&(n, _)| n))
+        .try_map(|name| T::from_name(&name).ok_or_else(|| format!("expected {}", T::name_list())))
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum TestArg {
-    Watertight,
-    MollerTrumbore,
+/// `s` as a JSON string literal, quotes and escapes included.
+fn json_str(s: &str) -> String {
+    serde_json::Value::from(s).to_string()
 }
 
 /// Rays handed to a thread at a time.
@@ -80,15 +79,7 @@ const CHUNK: usize = 4096;
 pub fn run(args: RaysBenchArgs) -> Result<()> {
     let mesh = load_peer_mesh(&args.mesh)?;
     let rays = read_rays(&args.rays)?;
-    let quality = match args.quality {
-        QualityArg::Fast => BuildQuality::Fast,
-        QualityArg::Default => BuildQuality::Default,
-        QualityArg::High => BuildQuality::High,
-    };
-    let test = match args.test {
-        TestArg::Watertight => TriangleTest::Watertight,
-        TestArg::MollerTrumbore => TriangleTest::MollerTrumbore,
-    };
+    let (quality, test) = (args.quality, args.test);
     let threads = usize::from(args.threads);
     let params = BuildParams::for_quality(quality);
     // In a pool of `threads` workers started once: one discarded build warms
