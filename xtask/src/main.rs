@@ -11,11 +11,14 @@
 //! - `fuzz [TARGET...] [--runs N] [--time S]`: build and run the fuzz
 //!   targets in `fuzz/` (see `fuzz.rs`);
 //! - `tradeoff [SCENE...]`: speed against accuracy of the quality presets
-//!   (see `tradeoff.rs`).
+//!   (see `tradeoff.rs`);
+//! - `farm`: a split render and a turntable on a one-node Slurm cluster
+//!   brought up and torn down here (see `farm.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod extremes;
+mod farm;
 mod fuzz;
 mod tidy;
 mod tradeoff;
@@ -68,7 +71,13 @@ commands:
                            default scenes res/scenes/seed.toml and cornell-mitsuba.toml;
                            writes target/tradeoff/report.md and PNGs; --check fails
                            unless every slower preset has a lower RMSE;
-                           --reference-only renders (or finds) the references only";
+                           --reference-only renders (or finds) the references only
+  farm [--release] [--no-build]
+                           bring up a one-node Slurm cluster (munged, slurmctld, slurmd
+                           from Debian's slurm-wlm and munge; root), submit res/farm's
+                           split-render array job with its merge job and a turntable
+                           array, wait, cmp the outputs with single-process renders,
+                           and stop the daemons";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -82,6 +91,7 @@ fn main() -> ExitCode {
         Some("extremes") => extremes::run_full(&args[1..]),
         Some("fuzz") => fuzz::fuzz(&args[1..]),
         Some("tradeoff") => tradeoff::tradeoff(&args[1..]),
+        Some("farm") => farm::farm(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())
