@@ -191,7 +191,8 @@ fn write_config(dir: &Path) -> Result<PathBuf, String> {
     run_quiet(Command::new("chmod").args(["600"]).arg(&key))?;
     run_quiet(Command::new("chmod").args(["755"]).arg(dir.join("munge")))?;
     // The node as slurmd sees it (CPUs, sockets, memory), so it is not
-    // drained for disagreeing with the configuration.
+    // drained for disagreeing with the configuration; both daemons are
+    // reached on 127.0.0.1, whether or not the host name resolves.
     let node = Command::new("slurmd").arg("-C").output().map_err(|e| e.to_string())?;
     let node_line = String::from_utf8_lossy(&node.stdout)
         .lines()
@@ -208,7 +209,7 @@ fn write_config(dir: &Path) -> Result<PathBuf, String> {
     let text = format!(
         "# Written by cargo xtask farm: a one-node cluster for one check.
 ClusterName=lucentfarm
-SlurmctldHost={host}
+SlurmctldHost={host}(127.0.0.1)
 SlurmctldPort={CTLD_PORT}
 SlurmdPort={SLURMD_PORT}
 AuthType=auth/munge
@@ -233,7 +234,7 @@ JobCompType=jobcomp/none
 AccountingStorageType=accounting_storage/none
 JobAcctGatherType=jobacct_gather/none
 MinJobAge=600
-{node_line} State=UNKNOWN
+{node_line} NodeAddr=127.0.0.1 State=UNKNOWN
 PartitionName=farm Nodes={host} Default=YES MaxTime=INFINITE State=UP
 "
     );
