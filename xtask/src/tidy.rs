@@ -2,7 +2,7 @@
 //! (so `cargo test` enforces them):
 //! - every Rust file starts with a `//!` comment saying what it is for;
 //! - dependency ownership: hecs only in lucent-scene, minifb only in the
-//!   app, tobj/ply-rs/image only in lucent-assets (image also in the test
+//!   app, tobj/image only in lucent-assets (image also in the test
 //!   package), rayon only in lucent-render and lucent-accel, nv-flip and
 //!   plotters (measuring and plotting tools, C++ in nv-flip's case) only
 //!   in xtask;
@@ -17,7 +17,6 @@ const OWNERS: &[(&str, &[&str])] = &[
     ("hecs", &["lucent-scene"]),
     ("minifb", &["lucent"]),
     ("tobj", &["lucent-assets"]),
-    ("ply-rs", &["lucent-assets"]),
     ("image", &["lucent-assets", "tests"]),
     ("rayon", &["lucent-render", "lucent-accel"]),
     ("nv-flip", &["xtask"]),

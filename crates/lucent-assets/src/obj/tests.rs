@@ -172,6 +172,59 @@ fn non_numeric_fields_name_the_line() {
 }
 
 #[test]
+fn msvc_and_other_non_finite_spellings_reject_the_vertex() {
+    // Two triangles over four vertices; the third vertex is not finite.
+    for word in [
+        "1.#IND",
+        "-1.#IND",
+        "1.#QNAN",
+        "-1.#QNAN",
+        "1.#INF",
+        "-1.#INF",
+        "1.#INF00",
+        "-1.#IND00",
+        "1.#SNAN",
+        "1.#INF00e+000",
+        "nan",
+        "NaN",
+        "-inf",
+        "INF",
+        "Infinity",
+        "-INFINITY",
+    ] {
+        let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\nf 1 2 4\n");
+        let (parts, report) = load(&[("t.obj", text.into_bytes().leak())], "t.obj").unwrap_or_default();
+        let m = parts.first().map(|p| &p.mesh);
+        assert_eq!(
+            m.map(|m| (m.positions().len(), m.n_triangles())),
+            Some((4, 3)),
+            "{word}"
+        );
+        assert!(
+            m.is_some_and(|m| m.positions()[2].is_nan()),
+            "{word}: the vertex is rejected"
+        );
+        assert_eq!(
+            report.warnings,
+            [
+                "t.obj: rejected 1 vertices with NaN or infinite coordinates and the 2 triangles that use them \
+              (they keep their numbers but are never drawn)"
+            ],
+            "{word}"
+        );
+    }
+    // (A word that starts with `#`, such as `#IND`, starts a comment.)
+    for word in ["3.1+e2", "1.2.3", "1.#INFX", "1.#", "1.#NAN", "1.#INF01"] {
+        let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nf 1 2 3\n");
+        assert_eq!(
+            parse_err(text.into_bytes().leak()),
+            Err(format!("t.obj:3: '{word}' is not a number")),
+            "{word}"
+        );
+    }
+}
+
+#[test]
 fn vertex_colours_and_attributes_only_when_given() {
     let (parts, _) = load(
         &[(
