@@ -11,11 +11,14 @@
 //! - `fuzz [TARGET...] [--runs N] [--time S]`: build and run the fuzz
 //!   targets in `fuzz/` (see `fuzz.rs`);
 //! - `tradeoff [SCENE...]`: speed against accuracy of the quality presets
-//!   (see `tradeoff.rs`).
+//!   (see `tradeoff.rs`);
+//! - `farm`: a split render and a turntable on a one-node Slurm cluster
+//!   brought up and torn down here (see `farm.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod extremes;
+mod farm;
 mod fuzz;
 mod tidy;
 #[cfg(feature = "tradeoff")]
@@ -57,7 +60,13 @@ commands:
                            default scenes res/scenes/seed.toml and cornell-mitsuba.toml;
                            writes target/tradeoff/report.md and PNGs; --check fails
                            unless every slower preset has a lower RMSE;
-                           --reference-only renders (or finds) the references only";
+                           --reference-only renders (or finds) the references only
+  farm [--release] [--no-build]
+                           bring up a one-node Slurm cluster (munged, slurmctld, slurmd
+                           from Debian's slurm-wlm and munge; root), submit res/farm's
+                           split-render array job with its merge job and a turntable
+                           array, wait, cmp the outputs with single-process renders,
+                           and stop the daemons";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -72,6 +81,7 @@ fn main() -> ExitCode {
         Some("fuzz") => fuzz::fuzz(&args[1..]),
         #[cfg(feature = "tradeoff")]
         Some("tradeoff") => tradeoff::tradeoff(&args[1..]),
+        Some("farm") => farm::farm(&args[1..]),
         // Built by the `cargo xtask` alias without the feature: run the
         // release build with it, as `tradeoff` would run itself anyway (only
         // this task needs a C++ compiler, for nv-flip).

@@ -14,8 +14,9 @@
 //! - only `extract.rs` sees hecs; the kernel works on [`RenderScene`];
 //! - the kernel cannot fail and allocates nothing per ray;
 //! - determinism: every (pixel, sample, seed) has its own random stream and
-//!   each pixel accumulates its samples in a fixed order, so the same scene,
-//!   settings and seed give the same bytes on 1 or N threads.
+//!   each pixel sums its samples exactly ([`ExactRgb`]), so the same scene,
+//!   settings and seed give the same bytes on 1 or N threads, and shares of
+//!   the samples rendered apart merge into those bytes ([`Film::merge`]).
 //!
 //! ```
 //! use lucent_render::{extract, render, RenderSettings};
@@ -36,12 +37,14 @@
 #![forbid(unsafe_code)]
 
 mod camera;
+pub mod exact;
 mod extract;
 mod film;
 pub mod flat;
 pub mod interaction;
 pub mod lights;
 pub mod metrics;
+pub mod partial;
 pub mod path;
 pub mod progressive;
 pub mod quality;
@@ -49,6 +52,7 @@ mod render;
 pub mod whitted;
 
 pub use camera::PinholeCamera;
+pub use exact::ExactRgb;
 pub use extract::{
     ExtractError, ExtractOptions, RenderInstance, RenderScene, SceneFeatures, VertexReads, extract, extract_with,
     render_origin, scene_features,

@@ -1,14 +1,17 @@
 //! `lucent`: the Lucent app. With no arguments it opens the interactive
 //! viewer on the built-in seed scene; `lucent render` renders a scene file
-//! to a PNG without a window; `lucent info` describes a file as JSON;
-//! `lucent bench` measures.
+//! to a PNG without a window (or one share of its samples, or a turntable);
+//! `lucent merge` adds a split render's shares into its image; `lucent
+//! info` describes a file as JSON; `lucent bench` measures.
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a command-line program reports on stdout")]
 
 mod bench_cmd;
 mod bench_load;
 mod builtin;
+mod farm;
 mod info_cmd;
+mod merge_cmd;
 mod render_cmd;
 mod viewer;
 
@@ -89,6 +92,9 @@ enum Command {
     Bench(bench_cmd::BenchArgs),
     /// Describe a mesh (.obj, .ply) or scene (.toml) file as JSON.
     Info(info_cmd::InfoArgs),
+    /// Merge the partial files of a split render (`render --part K/N
+    /// --partial FILE`) into the image one `render` makes, byte for byte.
+    Merge(merge_cmd::MergeArgs),
 }
 
 /// Settings shared by `view`, `render` and `bench render`, overriding the
@@ -239,6 +245,7 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::Render(args)) => render_cmd::run(args),
         Some(Command::Bench(args)) => bench_cmd::run(args),
         Some(Command::Info(args)) => info_cmd::run(args),
+        Some(Command::Merge(args)) => merge_cmd::run(args),
     }
 }
 

@@ -19,19 +19,19 @@ const MAX_SPP: u32 = 65536;
 #[derive(Args, Debug)]
 pub struct RenderArgs {
     /// Scene file (TOML); the built-in seed scene when omitted.
-    scene: Option<PathBuf>,
+    pub(crate) scene: Option<PathBuf>,
     /// Output PNG file: radiance times 2^exposure, clamped to [0, 1], sRGB, 8 bits.
-    #[arg(short, long, value_name = "FILE.png", required_unless_present = "exr")]
-    output: Option<PathBuf>,
+    #[arg(short, long, value_name = "FILE.png", required_unless_present_any = ["exr", "partial"])]
+    pub(crate) output: Option<PathBuf>,
     /// Output linear EXR file (32-bit float radiance, no exposure, no clamp).
     #[arg(long, value_name = "FILE.exr")]
-    exr: Option<PathBuf>,
+    pub(crate) exr: Option<PathBuf>,
     /// Exposure of the PNG in stops (EV): radiance is scaled by 2^EV first.
     #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_ev)]
-    exposure: f32,
+    pub(crate) exposure: f32,
     /// Samples per pixel (1 to 65536).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=65536))]
-    spp: Option<u32>,
+    pub(crate) spp: Option<u32>,
     /// Refine until this much wall time is spent (after loading and the BVH),
     /// e.g. 2s, 1.5s, 500ms; --spp caps the samples (default 65536).
     #[arg(long, value_name = "TIME", value_parser = parse_budget, conflicts_with = "target_error")]
@@ -42,9 +42,11 @@ pub struct RenderArgs {
     target_error: Option<f64>,
     /// Worker threads (default: one per CPU).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
-    threads: Option<u16>,
+    pub(crate) threads: Option<u16>,
     #[command(flatten)]
     pub(crate) quality: QualityArgs,
+    #[command(flatten)]
+    pub(crate) farm: crate::farm::FarmArgs,
 }
 
 /// A duration such as `2s`, `1.5s` or `500ms`, from 1 ms to 24 hours.
@@ -81,6 +83,9 @@ fn parse_ev(s: &str) -> Result<f32, String> {
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
+    if let Some(frames) = args.farm.turntable {
+        return crate::farm::run_turntable(&args, frames);
+    }
     if let Some(png) = &args.output {
         check_png_path(png)?;
     }
@@ -95,6 +100,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.time_budget.is_some() || args.target_error.is_some() {
         // --spp is the cap here, not the scene's spp.
         scene.settings.spp = args.spp.unwrap_or(MAX_SPP);
+    }
+    if let Some(share) = args.farm.part {
+        crate::farm::check_part(share, &scene.settings)?;
     }
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
@@ -126,9 +134,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(exr) = &args.exr {
         lucent_assets::save_exr(exr, w, h, &out.film.to_linear_rgb())?;
     }
+    if let (Some(share), Some(path)) = (args.farm.part, &args.farm.partial) {
+        let options = args.quality.extract_options();
+        crate::farm::save_partial(path, args.scene.as_deref(), share, &settings, &options, &out.film)?;
+    }
     let secs = out.elapsed.as_secs_f64();
     let rays = out.stats.total();
-    let outputs: Vec<String> = [&args.output, &args.exr]
+    let outputs: Vec<String> = [&args.output, &args.exr, &args.farm.partial]
         .into_iter()
         .flatten()
         .map(|p| p.display().to_string())
@@ -178,6 +190,18 @@ fn render_mode(
     args: &RenderArgs,
     bar: &ProgressBar,
 ) -> (RenderOutput, Option<String>) {
+    if let Some(share) = args.farm.part {
+        let out = lucent_render::partial::render_share(rs, settings, share, &|rows| bar.set_position(rows as u64));
+        let r = share.samples(settings.spp);
+        let refined = format!(
+            "share {share}: samples {}..{} of {} spp, {:.3} s/spp",
+            r.start,
+            r.end,
+            settings.spp,
+            out.elapsed.as_secs_f64() / r.len().max(1) as f64
+        );
+        return (out, Some(refined));
+    }
     if let Some(budget) = args.time_budget {
         bar.set_style(
             ProgressStyle::with_template("{spinner} rendering for {msg}, {elapsed}")
