@@ -54,11 +54,15 @@ pub struct RaysBenchArgs {
     /// Compare the any-hit results with this occlusion file (needs --occluded).
     #[arg(long, value_name = "FILE", requires = "occluded")]
     compare_occluded: Option<PathBuf>,
-    /// After timing, one untimed pass that counts the 4-wide nodes and
+    /// After timing, one untimed pass that counts the 8-wide nodes and
     /// triangle packs each query tests (closest hit, and any hit with
     /// --occluded); adds nodes_per_ray and packs_per_ray to the JSON line.
     #[arg(long)]
     counts: bool,
+    /// Walk with the portable box test even where the AVX2 one would run
+    /// (to compare the two in one binary).
+    #[arg(long)]
+    portable: bool,
 }
 
 /// A flag whose values are a [`Named`] enum's names.
@@ -95,13 +99,13 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
         build_times.remove(0);
         (bvh, median(&mut build_times))
     })?;
-    let bvh = bvh.with_triangle_test(test);
+    let bvh = bvh.with_triangle_test(test).with_vector_kernel(!args.portable);
 
     let mut hits = vec![Hit::MISS; rays.len()];
     let trace_s = time_passes(args.reps, || trace(&bvh, &rays, &mut hits, threads));
     let n_hits = hits.iter().filter(|h| h.prim >= 0).count();
     let mut json = format!(
-        "{{\"mesh\":{},\"rays_file\":{},\"triangles\":{},\"quality\":\"{}\",\"test\":\"{}\",\"threads\":{},\
+        "{{\"mesh\":{},\"rays_file\":{},\"triangles\":{},\"quality\":\"{}\",\"test\":\"{}\",\"kernel\":\"{}\",\"threads\":{},\
 \"build_s\":{:.5},\"rays\":{},\"reps\":{},\"trace_s\":{:.5},\"mrays_s\":{:.3},\"hits\":{},\"bytes\":{},\
 \"bytes_per_triangle\":{:.1}",
         json_str(&args.mesh.display().to_string()),
@@ -109,6 +113,7 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
         mesh.n_triangles(),
         quality.name(),
         test.name(),
+        if bvh.vector_kernel() { "avx2" } else { "portable" },
         threads,
         build_s,
         rays.len(),
