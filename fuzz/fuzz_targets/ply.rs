@@ -1,4 +1,4 @@
-//! Fuzzes the PLY loader (header through ply-rs, ASCII and binary bodies).
+//! Fuzzes the PLY loader (header, ASCII and binary bodies).
 #![no_main]
 
 use lucent_fuzz::FuzzSource;

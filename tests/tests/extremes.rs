@@ -7,7 +7,7 @@
 //! slow for the normal suite (a 16384-pixel-wide image, 1e6 samples per
 //! pixel). The guarantees are written up in docs/robustness.md.
 
-use lucent_geom::{Affine3A, Vec3, shapes};
+use lucent_geom::{Affine3A, Named, Vec3, shapes};
 use lucent_render::{Film, RenderSettings, Shading, extract, render};
 use lucent_scene::Scene;
 use lucent_scene::components::{Camera, Light, Material, OrbitRig, Transform};

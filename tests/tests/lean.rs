@@ -2,7 +2,7 @@
 //! scene's features gives the same bytes as the general one that
 //! `ExtractOptions::all_features` forces, for both integrators.
 
-use lucent_geom::{Affine3A, Vec3, shapes};
+use lucent_geom::{Affine3A, Named, Vec3, shapes};
 use lucent_render::{ExtractOptions, Film, Integrator, RayStats, SceneFeatures, Shading, extract_with, render};
 use lucent_scene::Scene;
 use lucent_scene::components::{Camera, Light, Material, MeshRef, Name, OrbitRig, Texture};

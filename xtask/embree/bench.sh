@@ -2,12 +2,13 @@
 # Interleaved speed comparison: Lucent's traversal core vs Intel Embree.
 #
 #   xtask/embree/bench.sh [ROUNDS] [OUT_DIR]     (defaults: 3, /tmp/lucent-vs-embree)
-#   env: PEER=/tmp/embree-peer  BASELINE=path/to/an/older/lucent (optional)
+#   env: PEER=/tmp/embree-peer  BASELINE=path/to/an/older/lucent-bench (optional;
+#        a 'lucent' from before lucent-bench: BASELINE_CMD="bench rays")
 #        MESHES="bun_zipper dragon"  SETS="close primary random"  REPS=5
 #
 # Needs the ray and hit files made by xtask/embree/compare.sh. Each round runs,
 # for every mesh and ray set, Embree (closest + any hit, 1 and 2 threads, BVH
-# build on 2 CPUs), then `lucent bench rays` with 1 and 2 threads (and the
+# build on 2 CPUs), then `lucent-bench rays` with 1 and 2 threads (and the
 # BASELINE binary, if given), all under `flock /tmp/lucent-bench.lock`, so
 # that drifts of this shared machine hit every contender alike. Every result
 # is kept as a JSON line in OUT_DIR/results.jsonl; summarize.py prints the
@@ -22,8 +23,8 @@ MESHES=${MESHES:-"bun_zipper dragon"}
 SETS=${SETS:-"close primary random"}
 ASSETS=$ROOT/../shared/assets
 declare -A MESH=([bun_zipper]=$ASSETS/stanford-bunny/bun_zipper.ply [dragon]=$ASSETS/stanford-dragon-100k/dragon.ply)
-cargo build --release -q -p lucent --manifest-path "$ROOT/Cargo.toml"
-LUCENT=$ROOT/target/release/lucent
+cargo build --release -q -p lucent-bench --manifest-path "$ROOT/Cargo.toml"
+LUCENT=$ROOT/target/release/lucent-bench
 mkdir -p "$OUT"
 RES=$OUT/results.jsonl
 lock() { flock /tmp/lucent-bench.lock "$@"; }
@@ -46,12 +47,13 @@ print(json.dumps({"round": int(sys.argv[2]), "case": sys.argv[3], "who": "embree
 PY
       for threads in 1 2; do
         for who in lucent baseline; do
-          bin=$LUCENT
+          bin=$LUCENT cmd=rays
           if [[ $who == baseline ]]; then
             [[ -n ${BASELINE:-} ]] || continue
-            bin=$BASELINE
+            bin=$BASELINE cmd=${BASELINE_CMD:-rays}
           fi
-          line=$(lock "$bin" bench rays --mesh "$m" --rays "$rays" --occluded /dev/null \
+          # shellcheck disable=SC2086 # BASELINE_CMD may be two words
+          line=$(lock "$bin" $cmd --mesh "$m" --rays "$rays" --occluded /dev/null \
             --threads "$threads" --reps "$REPS" 2>/dev/null)
           echo "{$tag,\"who\":\"$who\",${line#\{}" >>"$RES"
         done

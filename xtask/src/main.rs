@@ -11,27 +11,19 @@
 //! - `fuzz [TARGET...] [--runs N] [--time S]`: build and run the fuzz
 //!   targets in `fuzz/` (see `fuzz.rs`);
 //! - `tradeoff [SCENE...]`: speed against accuracy of the quality presets
-//!   (see `tradeoff.rs`).
+//!   (see `tradeoff.rs`);
+//! - `farm`: a split render and a turntable on a one-node Slurm cluster
+//!   brought up and torn down here (see `farm.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod extremes;
+mod farm;
 mod fuzz;
 mod tidy;
+#[cfg(feature = "tradeoff")]
 mod tradeoff;
 mod viewer;
-
-/// Median of a list (mean of the middle two for an even length); NaN when
-/// empty. Shared by the viewer benchmark and the tradeoff report.
-pub(crate) fn median(values: &[f64]) -> f64 {
-    let mut v: Vec<f64> = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
-}
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -68,7 +60,13 @@ commands:
                            default scenes res/scenes/seed.toml and cornell-mitsuba.toml;
                            writes target/tradeoff/report.md and PNGs; --check fails
                            unless every slower preset has a lower RMSE;
-                           --reference-only renders (or finds) the references only";
+                           --reference-only renders (or finds) the references only
+  farm [--release] [--no-build]
+                           bring up a one-node Slurm cluster (munged, slurmctld, slurmd
+                           from Debian's slurm-wlm and munge; root), submit res/farm's
+                           split-render array job with its merge job and a turntable
+                           array, wait, cmp the outputs with single-process renders,
+                           and stop the daemons";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -81,7 +79,25 @@ fn main() -> ExitCode {
         Some("soak") => viewer::soak(&args[1..]),
         Some("extremes") => extremes::run_full(&args[1..]),
         Some("fuzz") => fuzz::fuzz(&args[1..]),
+        #[cfg(feature = "tradeoff")]
         Some("tradeoff") => tradeoff::tradeoff(&args[1..]),
+        Some("farm") => farm::farm(&args[1..]),
+        // Built by the `cargo xtask` alias without the feature: run the
+        // release build with it, as `tradeoff` would run itself anyway (only
+        // this task needs a C++ compiler, for nv-flip).
+        #[cfg(not(feature = "tradeoff"))]
+        Some("tradeoff") => run(cargo()
+            .args([
+                "run",
+                "--release",
+                "--quiet",
+                "--package",
+                "xtask",
+                "--features",
+                "tradeoff",
+                "--",
+            ])
+            .args(&args)),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

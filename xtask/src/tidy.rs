@@ -2,8 +2,8 @@
 //! (so `cargo test` enforces them):
 //! - every Rust file starts with a `//!` comment saying what it is for;
 //! - dependency ownership: hecs only in lucent-scene, minifb only in the
-//!   app, tobj/ply-rs/gltf/mikktspace/image only in lucent-assets (image
-//!   also in the test package), rayon only in lucent-render and lucent-accel, nv-flip and
+//!   app, tobj/gltf/mikktspace/image only in lucent-assets (image also in
+//!   the test package), rayon only in lucent-render and lucent-accel, nv-flip and
 //!   plotters (measuring and plotting tools, C++ in nv-flip's case) only
 //!   in xtask;
 //! - no `#[should_panic]` or `#[ignore]` tests (assert on `Err` instead);
@@ -17,7 +17,6 @@ const OWNERS: &[(&str, &[&str])] = &[
     ("hecs", &["lucent-scene"]),
     ("minifb", &["lucent"]),
     ("tobj", &["lucent-assets"]),
-    ("ply-rs", &["lucent-assets"]),
     ("gltf", &["lucent-assets"]),
     ("mikktspace", &["lucent-assets"]),
     ("image", &["lucent-assets", "tests"]),

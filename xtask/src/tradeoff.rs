@@ -28,6 +28,7 @@ mod reference;
 mod report;
 
 use imaging::{Image, flip_mean, upsample};
+use lucent_geom::Named;
 use lucent_render::quality::{PRESETS, QualityPreset};
 use lucent_render::{Integrator, RenderSettings, current_threads, extract_with, metrics, render, with_threads};
 use reference::{RefSettings, Reference};
@@ -197,7 +198,7 @@ fn reference_of(
     for w in &load_report.warnings {
         eprintln!("warning: {w}");
     }
-    let max_spp = PRESETS.iter().map(|p| p.spp).max().unwrap_or(1);
+    let max_spp = PRESETS.iter().filter_map(|p| p.settings.spp).max().unwrap_or(1);
     let spp = opts.ref_spp.unwrap_or(REF_MIN_SPP.max(REF_SPP_FACTOR * max_spp));
     let ref_settings = RefSettings {
         width: scene.settings.width,
@@ -365,21 +366,21 @@ fn time_preset(
 fn describe(p: &QualityPreset, base: &RenderSettings) -> String {
     let mut s = *base;
     p.apply(&mut s);
-    let model = match p.integrator {
+    let model = match s.integrator {
         Integrator::Whitted => format!(
             "Whitted {}, depth {}, min weight {}",
-            p.shading.name(),
-            p.max_depth,
-            p.min_weight
+            s.shading.name(),
+            s.max_depth,
+            s.min_weight
         ),
-        Integrator::Path => format!("path, depth {}, roulette from {}", p.max_depth, p.rr_depth),
+        Integrator::Path => format!("path, depth {}, roulette from {}", s.max_depth, s.rr_depth),
     };
     format!(
         "{}x{} ({}x), {} spp, {model}, BVH {}",
         s.width,
         s.height,
         p.resolution_scale,
-        p.spp,
+        s.spp,
         p.bvh_quality.name()
     )
 }
@@ -536,9 +537,12 @@ mod tests {
         };
         for p in &PRESETS {
             let d = describe(p, &base);
-            assert!(d.contains(&format!("{} spp", p.spp)), "{d}");
             assert!(
-                d.contains(if p.integrator == Integrator::Path {
+                d.contains(&format!("{} spp", p.settings.spp.unwrap_or(base.spp))),
+                "{d}"
+            );
+            assert!(
+                d.contains(if p.settings.integrator == Some(Integrator::Path) {
                     "path"
                 } else {
                     "Whitted"

@@ -13,7 +13,8 @@
 //! measure; they never run as part of `cargo test` (a short soak does, in
 //! `crates/lucent/tests/window.rs`).
 
-use crate::{cargo, has_program, median, root, run};
+use crate::{cargo, has_program, root, run};
+use lucent_render::metrics::median;
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -259,10 +260,10 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
         }
         fps.push((ts.len() - 1) as f64 / (ts[ts.len() - 1] - ts[0]));
         frame_ms.push(median(
-            &steady.iter().filter_map(|l| field(l, "frame_ms")).collect::<Vec<_>>(),
+            &mut steady.iter().filter_map(|l| field(l, "frame_ms")).collect::<Vec<_>>(),
         ));
         scales.push(median(
-            &steady.iter().filter_map(|l| field(l, "scale")).collect::<Vec<_>>(),
+            &mut steady.iter().filter_map(|l| field(l, "scale")).collect::<Vec<_>>(),
         ));
         // Release: the first full-resolution frame read after the button
         // went up (external), and its time since the last camera change as
@@ -285,11 +286,11 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
         o.size,
         o.cycles,
         o.rotate_s,
-        median(&fps),
-        median(&frame_ms),
-        median(&scales),
-        median(&release_ms),
-        median(&release_internal_ms),
+        median(&mut fps),
+        median(&mut frame_ms),
+        median(&mut scales),
+        median(&mut release_ms),
+        median(&mut release_internal_ms),
         json_list(&fps),
         json_list(&scales),
         json_list(&release_ms),
@@ -350,10 +351,11 @@ pub fn soak(args: &[String]) -> Result<(), String> {
     // Memory: after a warm-up of a tenth of the run, the median of the last
     // third against the median of the first third.
     let warm = o.seconds as f64 / 10.0;
-    let steady: Vec<f64> = rss_kb.iter().filter(|(t, _)| *t >= warm).map(|(_, kb)| *kb).collect();
+    let mut steady: Vec<f64> = rss_kb.iter().filter(|(t, _)| *t >= warm).map(|(_, kb)| *kb).collect();
     let third = steady.len() / 3;
-    let early = median(&steady[..third]);
-    let late = median(&steady[steady.len() - third..]);
+    let n = steady.len();
+    let early = median(&mut steady[..third]);
+    let late = median(&mut steady[n - third..]);
     let max = steady.iter().copied().fold(0.0, f64::max);
     let growth = late - early;
     let flat = third > 0 && growth < (4096.0f64).max(0.05 * early);
@@ -397,8 +399,8 @@ mod tests {
         assert_eq!(field(line, "R"), Some(3.0));
         assert_eq!(field(line, "O"), Some(1.5));
         assert_eq!(field(line, "missing"), None);
-        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
-        assert!(median(&[]).is_nan());
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert!(median(&mut []).is_nan());
     }
 
     #[test]

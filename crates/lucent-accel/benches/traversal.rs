@@ -12,6 +12,7 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use lucent_accel::{BuildParams, BuildQuality, MeshBvh};
+use lucent_geom::Named;
 use lucent_geom::{Aabb, Pcg32, Ray, TriMesh, Vec3, shapes};
 use std::hint::black_box;
 use std::path::PathBuf;

@@ -12,7 +12,7 @@
 //! halves it, so the depth stays below [`MAX_DEPTH`].
 
 use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH};
-use lucent_geom::Vec3;
+use lucent_geom::{Vec3, Vec3A};
 
 /// The speed-for-quality trade of a build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -27,15 +27,12 @@ pub enum BuildQuality {
     High,
 }
 
-impl BuildQuality {
-    /// Lowercase name (`fast`, `default`, `high`).
-    pub fn name(self) -> &'static str {
-        match self {
-            BuildQuality::Fast => "fast",
-            BuildQuality::Default => "default",
-            BuildQuality::High => "high",
-        }
-    }
+impl lucent_geom::Named for BuildQuality {
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("fast", BuildQuality::Fast),
+        ("default", BuildQuality::Default),
+        ("high", BuildQuality::High),
+    ];
 }
 
 /// Build settings. The defaults suit triangle meshes.
@@ -117,16 +114,46 @@ where
 /// Most bins per axis (the bins live on the stack, cleared per node).
 const MAX_BINS: usize = 32;
 
+/// A bin's box in four-lane registers (the union is two vector
+/// instructions; the min and max are exact, so the box equals the scalar
+/// union bit for bit).
 #[derive(Clone, Copy)]
 struct Bin {
-    bounds: Aabb,
+    min: Vec3A,
+    max: Vec3A,
     count: u32,
 }
 
 const EMPTY_BIN: Bin = Bin {
-    bounds: Aabb::EMPTY,
+    min: Vec3A::INFINITY,
+    max: Vec3A::NEG_INFINITY,
     count: 0,
 };
+
+impl Bin {
+    #[inline(always)]
+    fn add(&mut self, min: Vec3A, max: Vec3A) {
+        self.min = self.min.min(min);
+        self.max = self.max.max(max);
+        self.count += 1;
+    }
+
+    #[inline(always)]
+    fn merge(&mut self, other: &Bin) {
+        self.min = self.min.min(other.min);
+        self.max = self.max.max(other.max);
+        self.count += other.count;
+    }
+
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        Aabb {
+            min: self.min.into(),
+            max: self.max.into(),
+        }
+        .half_area()
+    }
+}
 
 /// A primitive as the builder moves it around: its box and its index, kept
 /// together so that partitioning streams through memory.
@@ -179,11 +206,12 @@ impl Binner {
         }
     }
 
-    /// The bin of centroid `c` along `axis`; always in range (`as usize`
-    /// saturates and maps NaN to 0).
+    /// The bin of centroid `c` along `axis`; always in range (clamped to the
+    /// last bin before the conversion, which maps NaN and negatives to 0).
     #[inline]
     fn bin(&self, c: Vec3, axis: usize) -> usize {
-        (((c[axis] - self.min[axis]) * self.scale[axis]) as usize).min(self.n_bins - 1)
+        let x = (c[axis] - self.min[axis]) * self.scale[axis];
+        x.min((self.n_bins - 1) as f32) as i32 as usize
     }
 }
 
@@ -326,13 +354,14 @@ impl Builder {
         if spread == [false; 3] {
             return None;
         }
+        // All three axes, spread or not (an axis that does not spread puts
+        // everything in bin 0 and is not swept), so the loop unrolls.
         let mut bins = [[EMPTY_BIN; MAX_BINS]; 3];
         for p in prims {
             let c = p.centroid();
-            for axis in (0..3).filter(|&a| spread[a]) {
-                let b = &mut bins[axis][binner.bin(c, axis)];
-                b.bounds = b.bounds.union(p.bounds);
-                b.count += 1;
+            let (min, max) = (Vec3A::from(p.bounds.min), Vec3A::from(p.bounds.max));
+            for (axis, bins) in bins.iter_mut().enumerate() {
+                bins[binner.bin(c, axis)].add(min, max);
             }
         }
         let mut best: Option<(usize, usize, f32)> = None;
@@ -342,15 +371,13 @@ impl Builder {
             let mut right_cost = [0.0f32; MAX_BINS];
             let mut acc = EMPTY_BIN;
             for i in (1..n_bins).rev() {
-                acc.bounds = acc.bounds.union(bins[i].bounds);
-                acc.count += bins[i].count;
-                right_cost[i] = acc.bounds.half_area() * self.blocks(acc.count as usize);
+                acc.merge(&bins[i]);
+                right_cost[i] = acc.half_area() * self.blocks(acc.count as usize);
             }
             let mut acc = EMPTY_BIN;
             for i in 1..n_bins {
-                acc.bounds = acc.bounds.union(bins[i - 1].bounds);
-                acc.count += bins[i - 1].count;
-                let left_cost = acc.bounds.half_area() * self.blocks(acc.count as usize);
+                acc.merge(&bins[i - 1]);
+                let left_cost = acc.half_area() * self.blocks(acc.count as usize);
                 let cost = self.params.traversal_cost + (left_cost + right_cost[i]) * inv_area;
                 if best.is_none_or(|(_, _, c)| cost < c) {
                     best = Some((axis, i, cost));
@@ -440,6 +467,15 @@ fn split_median(prims: &mut [PrimRef], cb: &Aabb) -> usize {
 mod tests {
     use super::*;
     use lucent_geom::Pcg32;
+
+    #[test]
+    fn every_build_quality_has_one_name() {
+        lucent_geom::assert_table(&[BuildQuality::Fast, BuildQuality::Default, BuildQuality::High]);
+        assert_eq!(
+            <BuildQuality as lucent_geom::Named>::name_list(),
+            "fast, default or high"
+        );
+    }
 
     fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
         let mut rng = Pcg32::new(seed, 0);

@@ -6,7 +6,7 @@
 //!   are built in parallel with rayon under the default `parallel` feature).
 //!   It knows nothing about what the boxes hold: traversal hands primitive
 //!   indices to a closure (the obvhs model).
-//! - [`MeshBvh`]: one [`TriMesh`]: the binary tree collapsed into a 4-wide
+//! - [`MeshBvh`]: one [`TriMesh`]: the binary tree collapsed into an 8-wide
 //!   tree whose nodes keep their children's boxes as structure-of-arrays,
 //!   walked nearest child first (largest child first for any hit), with the
 //!   leaves' triangles copied into packs of four that one vectorised test
@@ -17,8 +17,12 @@
 //! - [`SceneBvh`]: two levels, one BVH over instances (affine transforms of
 //!   shared [`MeshBvh`]s, each mesh stored once).
 //!
-//! The vector code is plain safe Rust over `[f32; 4]` lanes that the compiler
-//! vectorises (SSE on every x86-64): there is no `unsafe` here.
+//! The vector code is plain safe Rust over `[f32; 4]` and `[f32; 8]` lanes
+//! that the compiler vectorises, except one module, `kernel` (x86-64 only):
+//! the eight-box test in AVX2 intrinsics, chosen at run time where the
+//! processor has AVX2 and FMA ([`MeshBvh::with_vector_kernel`]), and checked
+//! bit for bit against the portable test. It holds this crate's only
+//! `unsafe` code.
 //!
 //! Invariants: no IO, no panics on data (empty, degenerate, NaN and infinite
 //! input is tolerated and simply never hit), no allocation per ray (traversal
@@ -32,10 +36,12 @@
 //! let hit = bvh.intersect(&Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z), f32::INFINITY);
 //! assert!((hit.map_or(0.0, |h| h.t) - 4.0).abs() < 0.01);
 //! ```
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 
 mod build;
 mod bvh;
+#[cfg(target_arch = "x86_64")]
+mod kernel;
 mod mesh_bvh;
 mod scene_bvh;
 mod wide;

@@ -1,6 +1,6 @@
 //! A BVH over one triangle mesh (the bottom level).
 
-use crate::wide::{Tally, Visit, WideBvh};
+use crate::wide::{Tally, WideBvh, leaf_entry};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{PreparedRay, Ray, TrianglePack4, TriangleTest, lane_triangle, plane_distance};
 
@@ -24,7 +24,7 @@ pub struct MeshHit {
 pub struct TraversalCounts {
     /// Queries counted.
     pub rays: u64,
-    /// 4-wide nodes whose children's boxes were tested.
+    /// 8-wide nodes whose children's boxes were tested.
     pub nodes: u64,
     /// Packs of four triangles tested.
     pub packs: u64,
@@ -44,8 +44,8 @@ impl Tally for TraversalCounts {
         self.nodes += 1;
     }
     #[inline(always)]
-    fn slot(&mut self) {
-        self.packs += 1;
+    fn packs(&mut self, n: usize) {
+        self.packs += n as u64;
     }
 }
 
@@ -62,7 +62,7 @@ const EMPTY_PACK: Pack = Pack {
     prim: [u32::MAX; 4],
 };
 
-/// A BVH over one mesh's triangles, traversed as a 4-wide tree. Each leaf's
+/// A BVH over one mesh's triangles, traversed as a 8-wide tree. Each leaf's
 /// triangles are copied into packs of four in structure-of-arrays form, so
 /// one vectorised test checks four triangles.
 ///
@@ -87,10 +87,11 @@ impl MeshBvh {
             .map(|t| Aabb::from_points(mesh.triangle(t)))
             .collect();
         let bvh = Bvh::build(&boxes, params);
-        let mut wide = WideBvh::from_binary(&bvh);
         let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 3 + 1);
-        wide.map_leaves(|first, count| {
-            let start = packs.len() as u32;
+        // Leaves hold at most 16 primitives (four packs), as a leaf entry
+        // can address.
+        let wide = WideBvh::from_binary(&bvh, |first, count| {
+            let start = packs.len();
             let slots = &bvh.prim_indices[first as usize..(first + count) as usize];
             for chunk in slots.chunks(4) {
                 let mut pack = EMPTY_PACK;
@@ -104,7 +105,7 @@ impl MeshBvh {
                 }
                 packs.push(pack);
             }
-            [start, packs.len() as u32 - start]
+            leaf_entry(start, packs.len() - start)
         });
         Self {
             wide,
@@ -120,6 +121,30 @@ impl MeshBvh {
     pub fn with_triangle_test(mut self, test: TriangleTest) -> Self {
         self.test = test;
         self
+    }
+
+    /// The same tree walked with the AVX2 box test where the processor has
+    /// it (`true`, the default) or with the portable one only (`false`).
+    /// Both find the same hits, bit for bit; only the speed differs.
+    ///
+    /// ```
+    /// use lucent_accel::{BuildParams, MeshBvh};
+    /// use lucent_geom::{shapes, Ray, Vec3};
+    /// let bvh = MeshBvh::build(&shapes::icosphere(2), &BuildParams::default());
+    /// let portable = bvh.clone().with_vector_kernel(false);
+    /// assert!(!portable.vector_kernel());
+    /// let ray = Ray::new(Vec3::new(0.1, 0.2, -5.0), Vec3::Z);
+    /// assert_eq!(bvh.intersect(&ray, f32::INFINITY), portable.intersect(&ray, f32::INFINITY));
+    /// ```
+    pub fn with_vector_kernel(mut self, on: bool) -> Self {
+        self.wide.set_simd(on);
+        self
+    }
+
+    /// Whether queries run the AVX2 box test (x86-64 processors with AVX2
+    /// and FMA, unless [`MeshBvh::with_vector_kernel`] turned it off).
+    pub fn vector_kernel(&self) -> bool {
+        self.wide.simd()
     }
 
     /// The ray-triangle test in use.
@@ -147,7 +172,7 @@ impl MeshBvh {
         self.stats
     }
 
-    /// Number of 4-wide nodes.
+    /// Number of 8-wide nodes.
     pub fn n_wide_nodes(&self) -> usize {
         self.wide.n_nodes()
     }
@@ -210,17 +235,21 @@ impl MeshBvh {
     fn intersect_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> Option<MeshHit> {
         // The walk reads the caller's ray, not the prepared copy: reading
         // the copy's fields back as wider loads right after they were
-        // stored one by one stalls store-to-load forwarding.
-        let prepared = PreparedRay::new(ray, self.test);
+        // stored one by one stalls store-to-load forwarding. The copy is
+        // made at the first leaf (many rays reach none).
+        let mut prepared = None;
         let mut best = None;
-        let visit = |idx, t_max| match self.hit_pack(&prepared, idx, t_max) {
-            Some(hit) => {
-                best = Some(hit);
-                Visit::Closer(hit.1.t)
+        let leaf = |first: usize, count: usize, t_bound: &mut f32| {
+            let prepared = prepared.get_or_insert_with(|| PreparedRay::new(ray, self.test));
+            for idx in first..first + count {
+                if let Some(hit) = self.hit_pack(prepared, idx, *t_bound) {
+                    *t_bound = hit.1.t;
+                    best = Some(hit);
+                }
             }
-            None => Visit::Miss,
+            false
         };
-        self.wide.traverse::<true, _, _>(ray, t_max, visit, tally);
+        self.wide.walk::<true, _, _>(ray, t_max, leaf, tally);
         best.map(|(slot, hit)| self.refine(ray, slot, hit, t_max))
     }
 
@@ -245,38 +274,41 @@ impl MeshBvh {
 
     #[inline(always)]
     fn occluded_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> bool {
-        let prepared = PreparedRay::new(ray, self.test);
-        let found = |idx: usize, _| match self.packs.get(idx) {
-            Some(p) if prepared.intersect4(&p.v, t_max).iter().any(Option::is_some) => Visit::Stop,
-            _ => Visit::Miss,
+        let mut prepared = None;
+        let found = |first: usize, count: usize, _: &mut f32| {
+            let prepared = prepared.get_or_insert_with(|| PreparedRay::new(ray, self.test));
+            self.packs.get(first..first + count).is_some_and(|packs| {
+                packs
+                    .iter()
+                    .any(|p| prepared.intersect4(&p.v, t_max).iter().any(Option::is_some))
+            })
         };
-        self.wide.traverse::<false, _, _>(ray, t_max, found, tally).1
+        self.wide.walk::<false, _, _>(ray, t_max, found, tally)
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
     /// order, until it returns `true`. Returns whether it was stopped.
     pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(MeshHit) -> bool) -> bool {
         let prepared = PreparedRay::new(ray, self.test);
-        let each = |idx: usize, _| {
-            let Some(pack) = self.packs.get(idx) else {
-                return Visit::Miss;
-            };
-            for (lane, h) in prepared.intersect4(&pack.v, t_max).into_iter().enumerate() {
-                if let Some(h) = h {
-                    let hit = MeshHit {
-                        t: h.t,
-                        u: h.u,
-                        v: h.v,
-                        prim: pack.prim[lane],
-                    };
-                    if visit(hit) {
-                        return Visit::Stop;
+        let each = |first: usize, count: usize, _: &mut f32| {
+            for pack in self.packs.get(first..first + count).unwrap_or_default() {
+                for (lane, h) in prepared.intersect4(&pack.v, t_max).into_iter().enumerate() {
+                    if let Some(h) = h {
+                        let hit = MeshHit {
+                            t: h.t,
+                            u: h.u,
+                            v: h.v,
+                            prim: pack.prim[lane],
+                        };
+                        if visit(hit) {
+                            return true;
+                        }
                     }
                 }
             }
-            Visit::Miss
+            false
         };
-        self.wide.traverse::<false, _, _>(ray, t_max, each, &mut ()).1
+        self.wide.walk::<false, _, _>(ray, t_max, each, &mut ())
     }
 
     /// The closest hit found by testing every triangle one at a time with
@@ -370,9 +402,9 @@ mod tests {
     /// one thread or on several (the parallel build must not depend on how
     /// rayon splits the work).
     #[cfg(feature = "parallel")]
-    /// The counted queries answer as the plain ones do, count nothing for
-    /// rays that miss the mesh's box and at least one node and pack for a
-    /// hit.
+    /// The counted queries answer as the plain ones do, count just the root
+    /// node for rays that miss the mesh's box and at least one node and
+    /// pack for a hit.
     #[test]
     fn counted_queries_match_and_count() {
         let mesh = random_soup(2000, 5);
@@ -400,7 +432,7 @@ mod tests {
             none,
             TraversalCounts {
                 rays: 1,
-                nodes: 0,
+                nodes: 1,
                 packs: 0
             }
         );
@@ -482,6 +514,56 @@ mod tests {
         }
     }
 
+    /// The walk with the AVX2 box test (where this processor has it) and
+    /// the portable walk answer every query alike, bit for bit, and do the
+    /// same work (nodes and packs tested), on soups and on hostile rays.
+    #[test]
+    fn vector_kernel_matches_the_portable_walk_bit_for_bit() {
+        let bits = |h: Option<MeshHit>| h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim));
+        for seed in 0..2 {
+            let mesh = random_soup(400, seed + 20);
+            for params in all_params() {
+                let simd = MeshBvh::build(&mesh, &params);
+                let portable = simd.clone().with_vector_kernel(false);
+                assert!(!portable.vector_kernel());
+                let mut rng = Pcg32::new(seed, 4);
+                let (mut cs, mut cp) = (TraversalCounts::default(), TraversalCounts::default());
+                let (mut os, mut op) = (TraversalCounts::default(), TraversalCounts::default());
+                for i in 0..1500 {
+                    let mut ray = random_ray(&mut rng);
+                    match i % 50 {
+                        0 => ray.dir.x = 0.0,
+                        1 => ray.dir = Vec3::new(0.0, -0.0, 1.0),
+                        2 => ray.origin.y = f32::NAN,
+                        3 => ray.dir.z = f32::INFINITY,
+                        _ => {}
+                    }
+                    let t_max = [f32::INFINITY, 5.0, 0.0, f32::NAN][i % 4];
+                    assert_eq!(
+                        bits(simd.intersect_counted(&ray, t_max, &mut cs)),
+                        bits(portable.intersect_counted(&ray, t_max, &mut cp)),
+                        "{ray:?} {t_max}"
+                    );
+                    assert_eq!(
+                        simd.occluded_counted(&ray, t_max, &mut os),
+                        portable.occluded_counted(&ray, t_max, &mut op)
+                    );
+                    let (mut hs, mut hp) = (Vec::new(), Vec::new());
+                    simd.for_each_hit(&ray, t_max, |h| {
+                        hs.push(bits(Some(h)));
+                        false
+                    });
+                    portable.for_each_hit(&ray, t_max, |h| {
+                        hp.push(bits(Some(h)));
+                        false
+                    });
+                    assert_eq!(hs, hp);
+                }
+                assert_eq!((cs, os), (cp, op), "the same work");
+            }
+        }
+    }
+
     /// The brute-force reference itself: Moller-Trumbore through the tree
     /// type equals the report's free function.
     #[test]
@@ -506,7 +588,7 @@ mod tests {
         }
     }
 
-    /// The 4-wide tree holds every triangle once under boxes that contain
+    /// The 8-wide tree holds every triangle once under boxes that contain
     /// it, and its traversal finds what the binary tree's does.
     #[test]
     fn wide_tree_matches_the_binary_tree() {

@@ -1,182 +1,247 @@
-//! The 4-wide BVH that mesh traversal runs on.
+//! The 8-wide BVH that mesh traversal runs on, and its portable walk.
 //!
-//! A binary tree is collapsed into nodes of up to four children: each node
+//! A binary tree is collapsed into nodes of up to eight children: each node
 //! pulls up the grandchildren of its largest interior children until it has
-//! four. A node keeps its children's boxes as structure-of-arrays (`[f32; 4]`
-//! per bound and axis), so one slab test checks all four children with
-//! four-lane vector instructions. The lane loops are plain safe Rust that the
-//! compiler vectorises (SSE on every x86-64, NEON on aarch64); no intrinsics
-//! and no `unsafe`.
+//! eight. A node keeps its children's boxes as structure-of-arrays (`[f32;
+//! 8]` per bound and axis, 256 bytes: four cache lines), so one slab test
+//! checks all eight children with eight-lane vector instructions. Nodes are
+//! stored depth first, a node's interior children side by side.
 //!
-//! Closest-hit traversal is ordered: the children a ray enters are visited
-//! nearest first, and a stacked child is skipped when a hit closer than its
-//! entry distance has been found meanwhile. Any-hit traversal skips the sort
-//! and visits children in stored order, largest box first. The slab test is conservative in the
-//! manner of Ize ("Robust BVH Ray Traversal", JCGT 2013): exit distances are
-//! scaled up by a few ulps so that rounding never drops a box the ray
-//! actually touches, which keeps the watertight triangle test watertight.
+//! The walk in this file is plain safe Rust (the compiler vectorises its
+//! lane loops: two SSE halves on x86-64, NEON on aarch64). It is the
+//! reference that [`crate::kernel`]'s AVX2 walk follows step for step: the
+//! same slab arithmetic, the same child order, the same stack discipline, so
+//! the two find the same hit, bit for bit.
+//!
+//! Closest-hit traversal goes to the nearest entered child (the lowest lane
+//! among equal entry distances) and pushes the others in lane order; a
+//! stacked child is skipped when a hit closer than its entry distance has
+//! been found meanwhile. Any-hit traversal goes to the highest entered lane
+//! (children are stored smallest box first, so that is the largest box) and
+//! pushes the others. The slab test is conservative in the manner of Ize
+//! ("Robust BVH Ray Traversal", JCGT 2013): the reciprocal direction is
+//! scaled down by 2^-20 for entry distances and up for exit distances,
+//! which covers the four roundings of `(plane - origin) * (1 / dir) *
+//! scale`, so rounding never drops a box the ray actually touches and the
+//! watertight triangle test stays watertight.
 
-use crate::{Bvh, MAX_DEPTH};
-use lucent_geom::{Aabb, Ray};
+use crate::Bvh;
+use lucent_geom::Ray;
 
-/// Marks a child entry as a leaf (index into [`WideBvh::leaves`]).
-const LEAF_BIT: u32 = 1 << 31;
-/// An unused child slot.
-const NO_CHILD: u32 = u32::MAX;
-/// Stack entries: each level pushes at most three children.
-const STACK: usize = (W - 1) * MAX_DEPTH + 4;
-/// Children per node. 8 was measured too (the same code with `W = 8`):
-/// +10-20% closest hit on the bunny's random rays but 5-25% slower on the
-/// dragon's primary rays, so 4 stays (SSE holds exactly four lanes).
-/// Measured again with the stack sized to the 8-wide tree's depth (with
-/// `W = 8` and 48 entries the dragon fell back to the 452-entry stack,
-/// 3.6 KB zeroed per ray): bunny random rays +16% closest, +8% any hit,
-/// dragon random rays 7% and 17% slower; compiled for AVX2 as well, the
-/// same. Still mixed, so still 4.
-const W: usize = 4;
-/// The stack of shallow trees (up to 16 interior levels, which covers
-/// meshes of millions of triangles): smaller, so cheaper to set up per ray.
-const SHALLOW_STACK: usize = 48;
-/// 1 + 2 gamma(3): the exit distance's worst relative rounding error, twice.
-const EXIT_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+/// Children per node.
+pub(crate) const W: usize = 8;
+/// Marks a child entry as a leaf: `LEAF_BIT | first_pack << 2 | (packs - 1)`.
+pub(crate) const LEAF_BIT: u32 = 1 << 31;
+/// Most packs one leaf can hold (two bits of the entry).
+pub(crate) const MAX_LEAF_PACKS: usize = 4;
+/// Scales the reciprocal direction for entry distances: 1 - 2^-20.
+pub(crate) const NEAR_SCALE: f32 = 1.0 - 1.0 / 1_048_576.0;
+/// Scales the reciprocal direction for exit distances: 1 + 2^-20.
+pub(crate) const FAR_SCALE: f32 = 1.0 + 1.0 / 1_048_576.0;
 
-/// Four children's boxes and entries (112 bytes, padded to two cache lines
-/// so that no node straddles three).
+/// Eight children's boxes and entries (224 bytes, padded to four cache
+/// lines).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub(crate) struct WideNode {
     /// `bounds[0]` are the lower corners, `bounds[1]` the upper ones, each
-    /// as `[axis][lane]`. Unused lanes hold an inverted box that no ray
-    /// enters.
-    bounds: [[[f32; W]; 3]; 2],
-    /// Child entries: a node index, `LEAF_BIT | leaf index`, or `NO_CHILD`.
-    child: [u32; W],
+    /// as `[axis][lane]`. Unused lanes hold an inverted box (`+inf` below,
+    /// `-inf` above) that no finite ray enters.
+    pub(crate) bounds: [[[f32; W]; 3]; 2],
+    /// Child entries: a node index, or `LEAF_BIT | first_pack << 2 |
+    /// (packs - 1)`; 0 in unused lanes (never entered).
+    pub(crate) child: [u32; W],
 }
 
 const EMPTY_NODE: WideNode = WideNode {
     bounds: [[[f32::INFINITY; W]; 3], [[f32::NEG_INFINITY; W]; 3]],
-    child: [NO_CHILD; W],
+    child: [0; W],
 };
 
-/// A 4-wide tree over primitive slots (positions in the binary tree's
-/// primitive order); leaves are `[first slot, count]`.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub(crate) struct WideBvh {
-    nodes: Vec<WideNode>,
-    leaves: Vec<[u32; 2]>,
-    /// Bounds of everything (the root's children together): rays that miss
-    /// it return before any per-ray setup.
-    bounds: Aabb,
-    /// Most interior nodes on a path from the root to a leaf; traversal
-    /// pushes at most three entries per interior node, so this picks the
-    /// size of the (zero-initialised) stack.
-    depth: usize,
+/// The leaf entry for `count` packs from `first` (`1 <= count <= 4`, and
+/// `first < 2^29`, which holds for meshes of up to 2^31 triangles).
+pub(crate) fn leaf_entry(first: usize, count: usize) -> u32 {
+    LEAF_BIT | ((first as u32) << 2) | (count.clamp(1, MAX_LEAF_PACKS) as u32 - 1)
 }
 
+/// First pack and number of packs of a leaf entry.
+#[inline(always)]
+pub(crate) fn leaf_range(entry: u32) -> (usize, usize) {
+    (((entry & !LEAF_BIT) >> 2) as usize, (entry & 3) as usize + 1)
+}
+
+/// An 8-wide tree whose leaves name runs of triangle packs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct WideBvh {
+    pub(crate) nodes: Vec<WideNode>,
+    /// Most interior nodes on a path from the root to a leaf: traversal
+    /// pushes at most seven entries per interior node, so this sizes the
+    /// stack.
+    pub(crate) depth: usize,
+    /// The AVX2 kernel, where the machine has it.
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) simd: Option<crate::kernel::Avx2>,
+}
+
+/// A test of a node's eight child boxes: entry distances and the mask of
+/// the children entered within `[0, t_bound]`.
+pub(crate) trait BoxTest: Copy {
+    /// Tests `node`'s children against `slab`'s ray.
+    fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32);
+}
+
+/// The portable box test: [`SlabRay::test`], safe Rust.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Portable;
+
+impl BoxTest for Portable {
+    #[inline(always)]
+    fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
+        slab.test(node, t_bound)
+    }
+}
+
+/// Stack entries needed for a tree of `depth` interior levels: seven per
+/// level, plus room for one whole eight-lane store past the top.
+pub(crate) const fn stack_size(depth: usize) -> usize {
+    (W - 1) * depth + W
+}
+
+/// Interior levels of the trees that use the small stack (an 8-wide tree of
+/// depth 8 holds millions of triangles; deeper ones are rare).
+pub(crate) const SMALL_DEPTH: usize = 8;
+/// Interior levels of the trees that use the medium stack.
+pub(crate) const MEDIUM_DEPTH: usize = 18;
+
 /// The per-ray constants of the slab test.
-struct SlabRay {
-    origin: [f32; 3],
-    inv_dir: [f32; 3],
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SlabRay {
+    pub(crate) origin: [f32; 3],
+    /// `(1 / dir) * NEAR_SCALE`, per axis.
+    pub(crate) inv_near: [f32; 3],
+    /// `(1 / dir) * FAR_SCALE`, per axis.
+    pub(crate) inv_far: [f32; 3],
     /// Which of `bounds[0]`/`bounds[1]` is entered first, per axis.
-    near: [usize; 3],
+    pub(crate) near: [usize; 3],
 }
 
 impl SlabRay {
-    fn new(ray: &Ray) -> Self {
-        let inv = ray.inv_dir();
+    #[inline(always)]
+    pub(crate) fn new(ray: &Ray) -> Self {
+        let inv = ray.inv_dir().to_array();
         Self {
             origin: ray.origin.to_array(),
-            inv_dir: inv.to_array(),
-            near: [0, 1, 2].map(|a| usize::from(inv[a] < 0.0)),
+            inv_near: inv.map(|i| i * NEAR_SCALE),
+            inv_far: inv.map(|i| i * FAR_SCALE),
+            near: inv.map(|i| usize::from(i < 0.0)),
         }
     }
 
-    /// Entry distances of the four children and which of them the ray
-    /// enters within `[0, t_max]`.
+    /// Entry distances of the eight children and the mask of those the ray
+    /// enters within `[0, t_bound]`.
     #[inline(always)]
-    fn test(&self, node: &WideNode, t_max: f32) -> ([f32; W], [bool; W]) {
+    pub(crate) fn test(&self, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
         let mut t_in = [0.0f32; W];
-        let mut t_out = [t_max; W];
+        let mut t_out = [t_bound; W];
         for axis in 0..3 {
             let near = &node.bounds[self.near[axis]][axis];
             let far = &node.bounds[1 - self.near[axis]][axis];
-            let (o, inv) = (self.origin[axis], self.inv_dir[axis]);
+            let (o, inv_n, inv_f) = (self.origin[axis], self.inv_near[axis], self.inv_far[axis]);
             for lane in 0..W {
-                let a = (near[lane] - o) * inv;
-                let b = (far[lane] - o) * inv * EXIT_SCALE;
+                let a = (near[lane] - o) * inv_n;
+                let b = (far[lane] - o) * inv_f;
                 // Compare-and-select, so a NaN (a ray in a slab plane) leaves
                 // the running value alone: the conservative choice.
                 t_in[lane] = if a > t_in[lane] { a } else { t_in[lane] };
                 t_out[lane] = if b < t_out[lane] { b } else { t_out[lane] };
             }
         }
-        let mut hit = [false; W];
+        let mut mask = 0u32;
         for lane in 0..W {
-            hit[lane] = t_in[lane] <= t_out[lane];
+            mask |= u32::from(t_in[lane] <= t_out[lane]) << lane;
         }
-        (t_in, hit)
+        (t_in, mask)
     }
 }
 
-fn has_nan(ray: &Ray) -> bool {
-    ray.origin.is_nan() || ray.dir.is_nan()
+/// Whether a ray can be traced at all: finite origin and direction (others
+/// never hit anything).
+#[inline(always)]
+pub(crate) fn traceable(ray: &Ray) -> bool {
+    ray.origin.is_finite() && ray.dir.is_finite()
+}
+
+/// The lane a walk goes to among the entered ones in `mask` (non-zero):
+/// nearest first (the lowest lane among equal entry distances) when
+/// `ORDERED`, else the highest lane.
+#[inline(always)]
+pub(crate) fn pick_lane<const ORDERED: bool>(t_in: &[f32; W], mask: u32) -> usize {
+    if !ORDERED {
+        return 31 - mask.leading_zeros() as usize;
+    }
+    let mut best = mask.trailing_zeros() as usize;
+    let mut rest = mask & (mask - 1);
+    while rest != 0 {
+        let lane = rest.trailing_zeros() as usize;
+        if t_in[lane] < t_in[best] {
+            best = lane;
+        }
+        rest &= rest - 1;
+    }
+    best
 }
 
 impl WideBvh {
-    /// Collapses a binary tree. The slots of the result are the binary
-    /// tree's positions in [`Bvh::prim_indices`] until
-    /// [`WideBvh::map_leaves`] renumbers them.
-    pub(crate) fn from_binary(bvh: &Bvh) -> Self {
+    /// Collapses a binary tree. `leaf(first, count)` turns each binary leaf
+    /// (a run of [`Bvh::prim_indices`]) into a child entry; it is called in
+    /// the order the leaves are laid out, depth first.
+    pub(crate) fn from_binary(bvh: &Bvh, mut leaf: impl FnMut(u32, u32) -> u32) -> Self {
         let mut wide = WideBvh::default();
         if bvh.nodes.is_empty() {
             return wide;
         }
         wide.nodes.push(EMPTY_NODE);
-        wide.bounds = bvh.bounds();
+        wide.set_simd(true);
         if bvh.nodes[0].is_leaf() {
             // A single leaf: a root with one child.
-            wide.fill(bvh, 0, &[0], 1);
+            wide.fill(bvh, 0, &[0], 1, &mut leaf);
         } else {
-            wide.collapse(bvh, 0, 0, 1);
+            wide.collapse(bvh, 0, 0, 1, &mut leaf);
         }
         wide
     }
 
     /// Fills wide node `at` from binary interior node `idx`.
-    fn collapse(&mut self, bvh: &Bvh, idx: usize, at: usize, depth: usize) {
+    fn collapse(&mut self, bvh: &Bvh, idx: usize, at: usize, depth: usize, leaf: &mut impl FnMut(u32, u32) -> u32) {
+        let area = |k: usize| bvh.nodes[k].aabb().half_area();
         let first = bvh.nodes[idx].first as usize;
-        let mut kids: Vec<usize> = vec![first, first + 1];
-        // Open the largest interior child until there are four.
-        while kids.len() < W {
-            let open = kids
-                .iter()
-                .enumerate()
-                .filter(|(_, k)| !bvh.nodes[**k].is_leaf())
-                .max_by(|a, b| {
-                    let area = |k: usize| bvh.nodes[k].aabb().half_area();
-                    area(*a.1).total_cmp(&area(*b.1))
-                })
-                .map(|(i, _)| i);
+        let mut kids = [0usize; W];
+        kids[..2].copy_from_slice(&[first, first + 1]);
+        let mut n = 2;
+        // Open the largest interior child until there are eight.
+        while n < W {
+            let open = (0..n)
+                .filter(|&i| !bvh.nodes[kids[i]].is_leaf())
+                .max_by(|&a, &b| area(kids[a]).total_cmp(&area(kids[b])));
             let Some(i) = open else { break };
-            let k = kids.remove(i);
-            let f = bvh.nodes[k].first as usize;
-            kids.insert(i, f + 1);
-            kids.insert(i, f);
+            let f = bvh.nodes[kids[i]].first as usize;
+            kids[i] = f;
+            kids[n] = f + 1;
+            n += 1;
         }
-        // Largest box first: any-hit walks children in this order, and a
+        // Smallest box first: any hit goes to the highest lane first, and a
         // bigger box is likelier to hold an occluder (the SAH's premise).
-        kids.sort_by(|&a, &b| {
-            let area = |k: usize| bvh.nodes[k].aabb().half_area();
-            area(b).total_cmp(&area(a))
-        });
-        self.fill(bvh, at, &kids, depth);
+        let kids = &mut kids[..n];
+        kids.sort_by(|&a, &b| area(a).total_cmp(&area(b)));
+        self.fill(bvh, at, kids, depth, leaf);
     }
 
     /// Fills wide node `at` (at interior level `depth`, root 1) with `kids`.
-    fn fill(&mut self, bvh: &Bvh, at: usize, kids: &[usize], depth: usize) {
+    fn fill(&mut self, bvh: &Bvh, at: usize, kids: &[usize], depth: usize, leaf: &mut impl FnMut(u32, u32) -> u32) {
         self.depth = self.depth.max(depth);
         let mut node = EMPTY_NODE;
-        let mut interior = Vec::new();
+        let mut interior = [(0usize, 0usize); W];
+        let mut n_interior = 0;
         for (lane, &k) in kids.iter().enumerate() {
             let b = &bvh.nodes[k];
             for axis in 0..3 {
@@ -184,31 +249,23 @@ impl WideBvh {
                 node.bounds[1][axis][lane] = b.max[axis];
             }
             if b.is_leaf() {
-                node.child[lane] = LEAF_BIT | self.leaves.len() as u32;
-                self.leaves.push([b.first, b.count]);
+                node.child[lane] = leaf(b.first, b.count);
             } else {
                 node.child[lane] = self.nodes.len() as u32;
-                interior.push((self.nodes.len(), k));
+                interior[n_interior] = (self.nodes.len(), k);
+                n_interior += 1;
                 self.nodes.push(EMPTY_NODE);
             }
         }
         self.nodes[at] = node;
-        for (child_at, k) in interior {
-            self.collapse(bvh, k, child_at, depth + 1);
+        for &(child_at, k) in &interior[..n_interior] {
+            self.collapse(bvh, k, child_at, depth + 1, leaf);
         }
     }
 
-    /// Replaces every leaf's `[first, count]` by `f(first, count)`, in leaf
-    /// order.
-    pub(crate) fn map_leaves(&mut self, mut f: impl FnMut(u32, u32) -> [u32; 2]) {
-        for leaf in &mut self.leaves {
-            *leaf = f(leaf[0], leaf[1]);
-        }
-    }
-
-    /// Memory held by nodes and leaf records, in bytes.
+    /// Memory held by the nodes, in bytes.
     pub(crate) fn bytes(&self) -> usize {
-        self.nodes.len() * size_of::<WideNode>() + self.leaves.len() * size_of::<[u32; 2]>()
+        self.nodes.len() * size_of::<WideNode>()
     }
 
     /// Number of wide nodes.
@@ -216,158 +273,191 @@ impl WideBvh {
         self.nodes.len()
     }
 
-    /// Traversal over slots, nearest child first when `ORDERED` (else in
-    /// tree order, which saves the sort where any hit will do). `visit` gets a
-    /// slot and the current `t_max` and says what it found; a
-    /// [`Visit::Closer`] hit shrinks `t_max`, [`Visit::Stop`] ends the walk.
-    /// Returns the final `t_max` and whether the walk was stopped. `tally`
-    /// is told of every node tested and every slot visited (`()` for none).
+    /// The walk: nearest child first when `ORDERED` (else the highest lane
+    /// first, which saves the ordering where any hit will do). `leaf(first_pack,
+    /// packs, &mut t_bound)` tests a leaf's packs, may lower `t_bound` (the
+    /// walk then skips boxes entered beyond it) and returns `true` to stop.
+    /// Returns whether the walk was stopped. `tally` is told of every node
+    /// tested and every pack visited (`()` for none).
+    ///
+    /// Runs [`crate::kernel`]'s AVX2 box test where the tree was built on a
+    /// machine that has it (and [`WideBvh::set_simd`] left it on), else the
+    /// portable one; both find the same hits, bit for bit.
     #[inline]
-    pub(crate) fn traverse<const ORDERED: bool, F, T>(
-        &self,
-        ray: &Ray,
-        t_max: f32,
-        visit: F,
-        tally: &mut T,
-    ) -> (f32, bool)
+    pub(crate) fn walk<const ORDERED: bool, F, T>(&self, ray: &Ray, t_max: f32, leaf: F, tally: &mut T) -> bool
     where
-        F: FnMut(usize, f32) -> Visit,
+        F: FnMut(usize, usize, &mut f32) -> bool,
         T: Tally,
     {
-        if self.nodes.is_empty()
-            || has_nan(ray)
-            || self.bounds.intersect_ray(ray.origin, ray.inv_dir(), t_max).is_none()
-        {
-            return (t_max, false);
+        if !traceable(ray) {
+            return false;
         }
-        if (W - 1) * self.depth <= SHALLOW_STACK {
-            self.walk::<ORDERED, SHALLOW_STACK, F, T>(ray, t_max, visit, tally)
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = self.simd {
+            return avx2.walk::<ORDERED, F, T>(self, ray, t_max, leaf, tally);
+        }
+        self.walk_sized::<ORDERED, Portable, F, T>(Portable, ray, t_max, leaf, tally)
+    }
+
+    /// Turns the vector kernel off (`false`, the portable walk only) or back
+    /// on where the machine has it.
+    pub(crate) fn set_simd(&mut self, on: bool) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.simd = if on { crate::kernel::Avx2::detect() } else { None };
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = on;
+    }
+
+    /// Whether walks run the vector kernel.
+    pub(crate) fn simd(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.simd.is_some()
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        false
+    }
+
+    /// [`WideBvh::walk`] with box test `B` and a stack sized to the tree.
+    #[inline(always)]
+    pub(crate) fn walk_sized<const ORDERED: bool, B, F, T>(
+        &self,
+        boxes: B,
+        ray: &Ray,
+        t_max: f32,
+        leaf: F,
+        tally: &mut T,
+    ) -> bool
+    where
+        B: BoxTest,
+        F: FnMut(usize, usize, &mut f32) -> bool,
+        T: Tally,
+    {
+        if self.depth <= SMALL_DEPTH {
+            self.walk_with::<ORDERED, { stack_size(SMALL_DEPTH) }, B, F, T>(boxes, ray, t_max, leaf, tally)
+        } else if self.depth <= MEDIUM_DEPTH {
+            self.walk_with::<ORDERED, { stack_size(MEDIUM_DEPTH) }, B, F, T>(boxes, ray, t_max, leaf, tally)
         } else {
-            self.walk::<ORDERED, STACK, F, T>(ray, t_max, visit, tally)
+            self.walk_with::<ORDERED, { stack_size(crate::MAX_DEPTH) }, B, F, T>(boxes, ray, t_max, leaf, tally)
         }
     }
 
-    /// [`WideBvh::traverse`] with a stack of `N` entries.
+    /// [`WideBvh::walk`] with a stack of `N` entries.
     #[inline(always)]
-    fn walk<const ORDERED: bool, const N: usize, F, T>(
+    fn walk_with<const ORDERED: bool, const N: usize, B, F, T>(
         &self,
+        boxes: B,
         ray: &Ray,
-        mut t_max: f32,
-        mut visit: F,
+        t_max: f32,
+        mut leaf: F,
         tally: &mut T,
-    ) -> (f32, bool)
+    ) -> bool
     where
-        F: FnMut(usize, f32) -> Visit,
+        B: BoxTest,
+        F: FnMut(usize, usize, &mut f32) -> bool,
         T: Tally,
     {
         let slab = SlabRay::new(ray);
-        let mut stack = [(0.0f32, 0u32); N];
+        let Some(mut node) = self.nodes.first() else {
+            return false;
+        };
+        let mut t_bound = t_max;
+        // The root's test is the bounds test: a ray that enters none of its
+        // children returns before the stack is set up.
+        let (mut t_in, mut mask) = boxes.test(&slab, node, t_bound);
+        tally.node();
+        if mask == 0 {
+            return false;
+        }
+        let mut stack_t = [0.0f32; N];
+        let mut stack_e = [0u32; N];
         let mut sp = 0usize;
-        let mut node_idx = 0usize;
-        'nodes: loop {
-            let node = &self.nodes[node_idx];
-            let (t_in, hit) = slab.test(node, t_max);
-            tally.node();
-            // The entered children, sorted far to near (at most four).
-            let mut cand = [(0.0f32, 0u32); W];
-            let mut n = 0;
-            // Unordered: the last candidate is visited first, so collect the
-            // lanes backwards to visit them in stored order.
-            for i in 0..W {
-                let lane = if ORDERED { i } else { W - 1 - i };
-                if hit[lane] {
-                    let mut j = n;
-                    while ORDERED && j > 0 && cand[j - 1].0 < t_in[lane] {
-                        cand[j] = cand[j - 1];
-                        j -= 1;
-                    }
-                    cand[j] = (t_in[lane], node.child[lane]);
-                    n += 1;
-                }
-            }
-            let mut next = None;
-            if n > 0 {
-                for &c in &cand[..n - 1] {
+        loop {
+            // `node` was tested: go to one entered child, stack the others.
+            let mut entry = if mask != 0 {
+                let lane = pick_lane::<ORDERED>(&t_in, mask);
+                let mut rest = mask & !(1 << lane);
+                while rest != 0 {
+                    let l = rest.trailing_zeros() as usize;
                     if sp < N {
-                        stack[sp] = c;
+                        stack_t[sp] = t_in[l];
+                        stack_e[sp] = node.child[l];
                         sp += 1;
                     }
+                    rest &= rest - 1;
                 }
-                next = Some(cand[n - 1].1);
-            }
-            loop {
-                let entry = match next.take() {
-                    Some(e) => e,
-                    None => loop {
-                        if sp == 0 {
-                            return (t_max, false);
-                        }
-                        sp -= 1;
-                        let (t_enter, e) = stack[sp];
-                        if t_enter <= t_max {
-                            break e;
-                        }
-                    },
+                node.child[lane]
+            } else {
+                let Some(e) = pop(&stack_t, &stack_e, &mut sp, t_bound) else {
+                    return false;
                 };
-                if entry & LEAF_BIT == 0 {
-                    node_idx = entry as usize;
-                    continue 'nodes;
+                e
+            };
+            // Test leaves until the next interior node.
+            while entry & LEAF_BIT != 0 {
+                let (first, count) = leaf_range(entry);
+                tally.packs(count);
+                if leaf(first, count, &mut t_bound) {
+                    return true;
                 }
-                if let Some(&[first, count]) = self.leaves.get((entry & !LEAF_BIT) as usize) {
-                    for slot in first as usize..(first + count) as usize {
-                        tally.slot();
-                        match visit(slot, t_max) {
-                            Visit::Miss => {}
-                            Visit::Closer(t) => t_max = t_max.min(t),
-                            Visit::Stop => return (t_max, true),
-                        }
-                    }
-                }
+                let Some(e) = pop(&stack_t, &stack_e, &mut sp, t_bound) else {
+                    return false;
+                };
+                entry = e;
             }
+            let Some(next) = self.nodes.get(entry as usize) else {
+                return false;
+            };
+            node = next;
+            (t_in, mask) = boxes.test(&slab, node, t_bound);
+            tally.node();
         }
     }
 }
 
-/// What a walk counts: nodes tested and slots visited. `()` counts nothing
+/// Pops the next stacked entry that can still hold a hit within `t_bound`
+/// (entered no later than it).
+#[inline(always)]
+fn pop<const N: usize>(stack_t: &[f32; N], stack_e: &[u32; N], sp: &mut usize, t_bound: f32) -> Option<u32> {
+    while *sp > 0 {
+        *sp -= 1;
+        if stack_t[*sp] <= t_bound {
+            return Some(stack_e[*sp]);
+        }
+    }
+    None
+}
+
+/// What a walk counts: nodes tested and packs visited. `()` counts nothing
 /// (and compiles to nothing), so the ordinary queries pay no cost.
 pub(crate) trait Tally {
     /// A node's children were tested.
     fn node(&mut self);
-    /// A slot (for meshes, a pack of four triangles) was visited.
-    fn slot(&mut self);
+    /// A leaf of `n` packs of four triangles was visited.
+    fn packs(&mut self, n: usize);
 }
 
 impl Tally for () {
     #[inline(always)]
     fn node(&mut self) {}
     #[inline(always)]
-    fn slot(&mut self) {}
+    fn packs(&mut self, _: usize) {}
 }
 
-/// What a primitive test found, for [`WideBvh::traverse`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) enum Visit {
-    /// Nothing (or nothing that changes the walk).
-    Miss,
-    /// A hit at this distance, closer than the current `t_max`.
-    Closer(f32),
-    /// Stop the walk.
-    Stop,
-}
-
-/// Whether the wide tree covers exactly the binary tree's slots and every
+/// Whether the wide tree covers exactly the packs `0..n_packs` and every
 /// child box holds its subtree (for tests).
 #[cfg(test)]
-pub(crate) fn check(wide: &WideBvh, n_slots: usize, slot_box: impl Fn(usize) -> lucent_geom::Aabb) {
-    let mut seen = vec![0u32; n_slots];
+pub(crate) fn check(wide: &WideBvh, n_packs: usize, pack_box: impl Fn(usize) -> lucent_geom::Aabb) {
+    let mut seen = vec![0u32; n_packs];
     let mut stack = vec![0usize];
+    let mut depth_seen = vec![1usize];
     while let Some(i) = stack.pop() {
+        let depth = depth_seen.pop().unwrap_or(0);
+        assert!(depth <= wide.depth, "depth {depth} > {}", wide.depth);
         let node = &wide.nodes[i];
         for lane in 0..W {
-            let c = node.child[lane];
-            if c == NO_CHILD {
-                continue;
-            }
             let lo = lucent_geom::Vec3::new(
                 node.bounds[0][0][lane],
                 node.bounds[0][1][lane],
@@ -379,16 +469,22 @@ pub(crate) fn check(wide: &WideBvh, n_slots: usize, slot_box: impl Fn(usize) -> 
                 node.bounds[1][2][lane],
             );
             let b = lucent_geom::Aabb { min: lo, max: hi };
+            if b.is_empty() {
+                continue;
+            }
+            let c = node.child[lane];
             if c & LEAF_BIT != 0 {
-                let [first, count] = wide.leaves[(c & !LEAF_BIT) as usize];
-                for s in first..first + count {
-                    seen[s as usize] += 1;
-                    assert_eq!(b.union(slot_box(s as usize)), b);
+                let (first, count) = leaf_range(c);
+                for (p, n) in seen.iter_mut().enumerate().skip(first).take(count) {
+                    *n += 1;
+                    assert_eq!(b.union(pack_box(p)), b);
                 }
             } else {
+                assert!(c as usize > i, "children are stored after their parent");
                 stack.push(c as usize);
+                depth_seen.push(depth + 1);
             }
         }
     }
-    assert!(seen.iter().all(|&n| n == 1), "every slot in exactly one leaf");
+    assert!(seen.iter().all(|&n| n == 1), "every pack in exactly one leaf");
 }

@@ -32,7 +32,8 @@ pub enum AssetError {
 }
 
 /// A place in a file: a line of a text format or a byte offset of a binary
-/// one. Displayed as the suffix of `file:line` or `file@byte` respectively.
+/// one. Displayed as the suffix of `file:12` or `file: byte 205`
+/// respectively, as in `mesh.obj:12: bad index`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Location {
     /// Line number, from 1.

@@ -5,7 +5,7 @@
 //! a run of 1,000,000 under a 3 GB address-space limit found the tobj and
 //! ply-rs failures that `obj.rs` and `ply.rs` now guard against.
 
-use crate::{MemorySource, load_mesh_from, load_scene_from};
+use crate::{AssetError, MemorySource, load_mesh_from, load_scene_from};
 use lucent_geom::Pcg32;
 use std::path::Path;
 
@@ -80,22 +80,23 @@ fn mutated_meshes_and_scenes_never_panic() {
     let bin = binary_ply();
     let mut rng = Pcg32::new(2026, 11);
     for _ in 0..3000 {
-        let obj: &'static [u8] = mutate(&mut rng, OBJ).leak();
-        let mtl: &'static [u8] = mutate(&mut rng, MTL).leak();
-        let ply: &'static [u8] = mutate(&mut rng, PLY).leak();
-        let bply: &'static [u8] = mutate(&mut rng, &bin).leak();
-        let scene: &'static [u8] = mutate(&mut rng, SCENE).leak();
         let src = MemorySource::new()
-            .with_file("m.obj", obj)
-            .with_file("m.mtl", mtl)
-            .with_file("a.ply", ply)
-            .with_file("b.ply", bply)
-            .with_file("s.toml", scene);
-        // Results may be Ok or Err; reaching the next line means no panic.
-        let _ = load_mesh_from(&src, Path::new("m.obj"));
-        let _ = load_mesh_from(&src, Path::new("a.ply"));
-        let _ = load_mesh_from(&src, Path::new("b.ply"));
-        let _ = load_scene_from(&src, Path::new("s.toml"));
+            .with_file("m.obj", mutate(&mut rng, OBJ))
+            .with_file("m.mtl", mutate(&mut rng, MTL))
+            .with_file("a.ply", mutate(&mut rng, PLY))
+            .with_file("b.ply", mutate(&mut rng, &bin))
+            .with_file("s.toml", mutate(&mut rng, SCENE));
+        // Results may be Ok or Err (reaching the check means no panic); an
+        // error names the file it is about first (an OBJ's may be its MTL's).
+        let named = |e: Option<AssetError>, files: &[&str]| {
+            if let Some(e) = e.map(|e| e.to_string()) {
+                assert!(files.iter().any(|f| e.starts_with(&format!("{f}:"))), "{e}");
+            }
+        };
+        named(load_mesh_from(&src, Path::new("m.obj")).err(), &["m.obj", "m.mtl"]);
+        named(load_mesh_from(&src, Path::new("a.ply")).err(), &["a.ply"]);
+        named(load_mesh_from(&src, Path::new("b.ply")).err(), &["b.ply"]);
+        named(load_scene_from(&src, Path::new("s.toml")).err(), &["s.toml"]);
     }
 }
 
@@ -117,14 +118,16 @@ element vertex 3\nproperty uchar x\nproperty uchar y\nproperty uchar z\nend_head
         let mut bytes = prefix.to_vec();
         let len = rng.next_u32() % 200;
         bytes.extend((0..len).map(|_| rng.next_u32() as u8));
-        let bytes: &'static [u8] = bytes.leak();
-        let src = MemorySource::new().with_file("r.ply", bytes).with_file("r.obj", bytes);
+        let src = MemorySource::new()
+            .with_file("r.ply", bytes.clone())
+            .with_file("r.obj", bytes);
         let ply = load_mesh_from(&src, Path::new("r.ply"));
         let obj = load_mesh_from(&src, Path::new("r.obj"));
         // Errors must name the file.
-        for e in [ply.err(), obj.err()].into_iter().flatten() {
-            let e = e.to_string();
-            assert!(e.starts_with("r.ply") || e.starts_with("r.obj"), "{e}");
+        for (e, file) in [(ply.err(), "r.ply:"), (obj.err(), "r.obj:")] {
+            if let Some(e) = e.map(|e| e.to_string()) {
+                assert!(e.starts_with(file), "{e}");
+            }
         }
     }
 }
@@ -139,7 +142,7 @@ property float z\nelement face 1\nproperty list uint uint vertex_indices\nend_he
     huge.extend(u32::MAX.to_le_bytes());
     huge.extend([0u8; 12]);
     let src = MemorySource::new()
-        .with_file("h.ply", huge.leak())
+        .with_file("h.ply", huge)
         .with_file("n.obj", b"v 0 0 0\nf -1 -2 -99999999999\n");
     let err = load_mesh_from(&src, Path::new("h.ply"))
         .map(|_| ())

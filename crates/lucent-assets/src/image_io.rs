@@ -321,8 +321,8 @@ mod tests {
 
     #[test]
     fn non_images_and_truncated_images_are_errors() {
-        let err = |bytes: &'static [u8]| {
-            let src = MemorySource::new().with_file("x.png", bytes);
+        let err = |bytes: &[u8]| {
+            let src = MemorySource::new().with_file("x.png", bytes.to_vec());
             load_texture(&src, Path::new("x.png"))
                 .map(|_| ())
                 .map_err(|e| e.to_string())
@@ -332,8 +332,7 @@ mod tests {
             Err("x.png: not a PNG or JPEG image (unrecognised header)".to_owned())
         );
         let png = encode_png(4, 4, &[7; 48]).unwrap_or_default();
-        let truncated: &'static [u8] = png[..png.len() / 2].to_vec().leak();
-        assert!(err(truncated).is_err_and(|e| e.starts_with("x.png: cannot decode image")));
+        assert!(err(&png[..png.len() / 2]).is_err_and(|e| e.starts_with("x.png: cannot decode image")));
         assert!(encode_png(2, 2, &[0; 5]).is_err());
     }
 

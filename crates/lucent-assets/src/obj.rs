@@ -165,8 +165,10 @@ pub(crate) fn strip_comment(line: &str) -> &str {
     line.trim()
 }
 
+/// A coordinate; MSVC's spellings of non-finite values (`1.#IND`, `-1.#INF`)
+/// read as what they stand for (see `number.rs`).
 fn number(word: &str, line: usize) -> Result<f32, LineError> {
-    word.parse().map_err(|_| (line, format!("'{word}' is not a number")))
+    crate::number::parse_f32_str(word).ok_or_else(|| (line, format!("'{word}' is not a number")))
 }
 
 fn parse_obj(bytes: &[u8]) -> Result<Parsed, LineError> {

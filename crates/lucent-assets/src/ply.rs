@@ -1,12 +1,13 @@
-//! PLY loading: ply-rs parses the header, our own reader streams the body
-//! straight into typed buffers.
+//! PLY loading: our own header parser (`ply_header.rs`) and body reader
+//! (`ply_body.rs`), which streams the body straight into typed buffers.
 //!
-//! ply-rs reads each element into a record through `set_property(String,
-//! Property)`, which allocates a key per value and held bun_zipper.ply to
-//! about 60 MB/s; the body reader here works on a fixed buffer with no
-//! allocation per element (see `ply_body.rs`). Supported: ASCII and binary
-//! (both endians), every scalar type and alias, positions, optional normals
-//! (`nx ny nz`), texture coordinates (`u v`, `s t` or
+//! ply-rs, which read the header until issue 21, refused headers real
+//! exporters write (CR-only line ends, padded lines, bare banner lines)
+//! and named its own line count in errors; its body reader allocated a key
+//! per value and held bun_zipper.ply to about 60 MB/s. The body reader
+//! here works on a fixed buffer with no allocation per element. Supported:
+//! ASCII and binary (both endians), every scalar type and alias, positions,
+//! optional normals (`nx ny nz`), texture coordinates (`u v`, `s t` or
 //! `texture_u texture_v`), colours (`red green blue`, integer or float,
 //! alpha ignored, taken as sRGB), faces as `vertex_indices` or
 //! `vertex_index` lists of any integer types, fan-triangulated in file
@@ -14,16 +15,10 @@
 //! any order.
 
 use crate::ply_body::{Body, Buffers, Input, Ty, read_body};
+use crate::ply_header::{ElementDef, Encoding, Header, PropertyType, find_header_end, parse_header};
 use crate::{AssetError, AssetSource, LoadReport, Location, MeshPart};
 use lucent_geom::TriMesh;
-use ply_rs::parser::Parser;
-use ply_rs::ply::{DefaultElement, ElementDef, Encoding, Header, PropertyType};
-use std::collections::HashSet;
-use std::io::Cursor;
 use std::path::Path;
-
-/// Longest header accepted; real headers are a few hundred bytes.
-const MAX_HEADER: usize = 1 << 20;
 
 /// Where a value of the vertex element goes (index into a record).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,29 +76,21 @@ pub(crate) struct Attributes {
 pub(crate) fn load_ply(source: &dyn AssetSource, path: &Path, report: &mut LoadReport) -> Result<MeshPart, AssetError> {
     let file = source.open(path)?;
     let mut input = Input::new(file.reader);
-    let io = |error| AssetError::Io {
-        path: path.to_owned(),
-        error,
-    };
-    let header_len = find_header_end(&mut input).map_err(io)?;
-    let header_len = header_len.map_err(|message| AssetError::format(path, message))?;
-    let header_bytes = &input.available()[..header_len];
-    check_header_text(header_bytes).map_err(|(line, message)| AssetError::at(path, Location::Line(line), message))?;
-    let header = Parser::<DefaultElement>::new()
-        .read_header(&mut Cursor::new(header_bytes))
-        .map_err(|e| AssetError::format(path, format!("bad PLY header: {}", one_line(&e.to_string()))))?;
-    let header_lines = header_bytes.iter().filter(|&&b| b == b'\n').count();
-    let payload_len = file.len.saturating_sub(header_len as u64);
-    check_counts_fit(&header, payload_len).map_err(|message| AssetError::format(path, message))?;
+    let span = find_header_end(&mut input, path)?;
+    let header = parse_header(&input.available()[..span.len], path, report)?;
+    let payload_len = file.len.saturating_sub(span.len as u64);
+    check_counts_fit(&header, payload_len)
+        .map_err(|(line, message)| AssetError::at(path, Location::Line(line), message))?;
     let (plans, attributes) = plan(&header, path, report)?;
-    input.consume(header_len);
+    input.consume(span.len);
     let n_vertices = plans.iter().find(|p| p.kind == Kind::Vertex).map_or(0, |p| p.count);
     let mut buffers = Buffers::with_capacity(&plans, attributes);
     let body = Body {
         plans: &plans,
         encoding: header.encoding,
         n_vertices,
-        header_lines,
+        header_lines: span.lines,
+        line_end: span.body_line_end,
         file_len: file.len,
     };
     read_body(&mut input, &body, &mut buffers).map_err(|(location, message)| AssetError::Format {
@@ -148,49 +135,13 @@ fn into_mesh(b: Buffers) -> Result<TriMesh, lucent_geom::MeshError> {
     Ok(mesh)
 }
 
-/// Length of the header including the `end_header` line, or why there is
-/// none. Fails fast on files that do not start with `ply`.
-fn find_header_end(input: &mut Input<'_>) -> std::io::Result<Result<usize, String>> {
-    input.fill(4)?;
-    let start = input.available();
-    if !(start.starts_with(b"ply\n") || start.starts_with(b"ply\r") || start == b"ply") {
-        return Ok(Err("not a PLY file (it does not start with a 'ply' line)".to_owned()));
-    }
-    let mut line_start = 0;
-    loop {
-        let avail = input.available();
-        match avail[line_start..].iter().position(|&b| b == b'\n') {
-            Some(nl) => {
-                let line_end = line_start + nl + 1;
-                if avail[line_start..line_end].trim_ascii() == b"end_header" {
-                    return Ok(Ok(line_end));
-                }
-                line_start = line_end;
-            }
-            None if input.at_eof() => {
-                if avail[line_start..].trim_ascii() == b"end_header" {
-                    return Ok(Ok(avail.len()));
-                }
-                return Ok(Err("the file ends inside the header (no end_header line)".to_owned()));
-            }
-            None if avail.len() >= MAX_HEADER => {
-                return Ok(Err(format!("no end_header line in the first {MAX_HEADER} bytes")));
-            }
-            None => {
-                let want = (2 * avail.len()).max(4096);
-                input.fill(want)?;
-            }
-        }
-    }
-}
-
 /// Chooses what to read from each element: the vertex attributes come in
 /// complete groups only (an `nx` without `ny`/`nz` is ignored).
 fn plan(header: &Header, path: &Path, report: &mut LoadReport) -> Result<(Vec<ElementPlan>, Attributes), AssetError> {
     let mut plans = Vec::with_capacity(header.elements.len());
     let mut attributes = Attributes::default();
     let mut saw_vertex = false;
-    for def in header.elements.values() {
+    for def in &header.elements {
         let kind = match def.name.as_str() {
             "vertex" => Kind::Vertex,
             "face" => Kind::Face,
@@ -199,7 +150,7 @@ fn plan(header: &Header, path: &Path, report: &mut LoadReport) -> Result<(Vec<El
         let props = match kind {
             Kind::Vertex => {
                 saw_vertex = true;
-                let (props, attrs) = plan_vertex(def).map_err(|m| AssetError::format(path, m))?;
+                let (props, attrs) = plan_vertex(def).map_err(|m| AssetError::at(path, Location::Line(def.line), m))?;
                 attributes = attrs;
                 props
             }
@@ -211,7 +162,7 @@ fn plan(header: &Header, path: &Path, report: &mut LoadReport) -> Result<(Vec<El
                         "triangle strips (element 'tristrips') are not supported and are skipped",
                     );
                 }
-                def.properties.values().map(|p| skip_plan(&p.data_type)).collect()
+                def.properties.iter().map(|p| skip_plan(p.ty)).collect()
             }
         };
         plans.push(ElementPlan {
@@ -222,21 +173,25 @@ fn plan(header: &Header, path: &Path, report: &mut LoadReport) -> Result<(Vec<El
         });
     }
     if !saw_vertex {
-        return Err(AssetError::format(path, "no `vertex` element"));
+        return Err(AssetError::at(
+            path,
+            Location::Line(header.end_line),
+            "the header declares no `vertex` element",
+        ));
     }
     Ok((plans, attributes))
 }
 
-fn skip_plan(t: &PropertyType) -> PropPlan {
+fn skip_plan(t: PropertyType) -> PropPlan {
     match t {
         PropertyType::Scalar(ty) => PropPlan::Scalar {
-            ty: ty.into(),
+            ty,
             slot: None,
             scale: 1.0,
         },
         PropertyType::List(count, item) => PropPlan::List {
-            count: count.into(),
-            item: item.into(),
+            count,
+            item,
             indices: false,
         },
     }
@@ -258,11 +213,8 @@ const COLORS: &[&[&str; 3]] = &[
 /// The first name group whose properties are all scalars of the element.
 fn group<'n, const N: usize>(def: &ElementDef, groups: &[&'n [&'n str; N]]) -> Option<&'n [&'n str; N]> {
     groups.iter().copied().find(|g| {
-        g.iter().all(|n| {
-            def.properties
-                .get(*n)
-                .is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(_)))
-        })
+        g.iter()
+            .all(|n| def.property(n).is_some_and(|p| matches!(p.ty, PropertyType::Scalar(_))))
     })
 }
 
@@ -282,11 +234,10 @@ fn plan_vertex(def: &ElementDef) -> Result<(Vec<PropPlan>, Attributes), String> 
     };
     let props = def
         .properties
-        .values()
-        .map(|p| match &p.data_type {
+        .iter()
+        .map(|p| match p.ty {
             PropertyType::Scalar(ty) => {
                 let slot = slot_of(&p.name);
-                let ty = Ty::from(ty);
                 let scale = match slot {
                     Some(Slot::R | Slot::G | Slot::B) => color_scale(ty),
                     _ => 1.0,
@@ -320,7 +271,7 @@ fn color_scale(ty: Ty) -> f32 {
 fn plan_face(def: &ElementDef, path: &Path, report: &mut LoadReport) -> Result<Vec<PropPlan>, AssetError> {
     let index_list = ["vertex_indices", "vertex_index"]
         .into_iter()
-        .find(|n| def.properties.contains_key(*n));
+        .find(|n| def.property(n).is_some());
     if index_list.is_none() {
         report.warn(
             path,
@@ -328,13 +279,13 @@ fn plan_face(def: &ElementDef, path: &Path, report: &mut LoadReport) -> Result<V
         );
     }
     def.properties
-        .values()
-        .map(|p| match &p.data_type {
+        .iter()
+        .map(|p| match p.ty {
             PropertyType::List(count, item) if Some(p.name.as_str()) == index_list => {
-                let (count, item) = (Ty::from(count), Ty::from(item));
                 if !count.is_integer() || !item.is_integer() {
-                    return Err(AssetError::format(
+                    return Err(AssetError::at(
                         path,
+                        Location::Line(p.line),
                         format!("face list '{}' must have integer count and index types", p.name),
                     ));
                 }
@@ -344,8 +295,9 @@ fn plan_face(def: &ElementDef, path: &Path, report: &mut LoadReport) -> Result<V
                     indices: true,
                 })
             }
-            PropertyType::Scalar(_) if Some(p.name.as_str()) == index_list => Err(AssetError::format(
+            PropertyType::Scalar(_) if Some(p.name.as_str()) == index_list => Err(AssetError::at(
                 path,
+                Location::Line(p.line),
                 format!("face property '{}' must be a list", p.name),
             )),
             t => Ok(skip_plan(t)),
@@ -353,75 +305,21 @@ fn plan_face(def: &ElementDef, path: &Path, report: &mut LoadReport) -> Result<V
         .collect()
 }
 
-/// Checks what ply-rs's header parser does not: the format line must name
-/// version 1.0 (the only one there is), every digit run must fit a `u64`
-/// (its grammar unwraps the parse, so a larger number would panic), element
-/// names must be unique (it keeps only the last declaration) and every
-/// element needs a property. Returns `(line, message)` for the first
-/// problem.
-fn check_header_text(bytes: &[u8]) -> Result<(), (usize, String)> {
-    // A set: a long header of many elements must not take quadratic time.
-    let mut names: HashSet<String> = HashSet::new();
-    let mut open_element: Option<(usize, String)> = None;
-    for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
-        for run in line.split(|b| !b.is_ascii_digit()).filter(|r| !r.is_empty()) {
-            let digits = String::from_utf8_lossy(run);
-            if digits.parse::<u64>().is_err() {
-                return Err((i + 1, format!("number {digits} in the header is too large")));
-            }
-        }
-        let text = String::from_utf8_lossy(line);
-        let mut words = text.split_whitespace();
-        match words.next() {
-            Some("format") => {
-                let encoding = words.next().unwrap_or_default();
-                if !matches!(encoding, "ascii" | "binary_little_endian" | "binary_big_endian") {
-                    return Err((i + 1, format!("unknown PLY format '{encoding}'")));
-                }
-                let version = words.next().unwrap_or_default();
-                if version != "1.0" {
-                    return Err((
-                        i + 1,
-                        format!("unsupported PLY format version '{version}' (only 1.0 exists)"),
-                    ));
-                }
-            }
-            Some("element") | Some("end_header") => {
-                if let Some((at, name)) = open_element.take() {
-                    return Err((at, format!("element '{name}' has no properties")));
-                }
-                if let Some(name) = words.next().filter(|_| text.starts_with("element")) {
-                    if !names.insert(name.to_owned()) {
-                        return Err((i + 1, format!("element '{name}' is declared twice")));
-                    }
-                    open_element = Some((i + 1, name.to_owned()));
-                }
-            }
-            Some("property") => open_element = None,
-            _ => {}
-        }
-        if line.starts_with(b"end_header") {
-            break;
-        }
-    }
-    Ok(())
-}
-
 /// Fails when the elements' counts cannot fit in the bytes after the
 /// header (each ASCII entry takes at least two bytes per property, a digit
 /// and a separator; each binary one at least the sum of its scalar sizes), so absurd
 /// counts are refused before anything is read or allocated. Names the first
-/// element that runs past the end.
-fn check_counts_fit(header: &Header, payload_len: u64) -> Result<(), String> {
+/// element that runs past the end, with its line.
+fn check_counts_fit(header: &Header, payload_len: u64) -> Result<(), (usize, String)> {
     let mut needed: u128 = 0;
-    for def in header.elements.values() {
+    for def in &header.elements {
         let per_element: u128 = match header.encoding {
             Encoding::Ascii => 2 * def.properties.len().max(1) as u128,
             _ => def
                 .properties
-                .values()
-                .map(|p| match &p.data_type {
-                    PropertyType::Scalar(t) | PropertyType::List(t, _) => Ty::from(t).size() as u128,
+                .iter()
+                .map(|p| match p.ty {
+                    PropertyType::Scalar(t) | PropertyType::List(t, _) => t.size() as u128,
                 })
                 .sum(),
         };
@@ -429,9 +327,12 @@ fn check_counts_fit(header: &Header, payload_len: u64) -> Result<(), String> {
         let remaining = (payload_len as u128).saturating_sub(needed);
         if element_bytes > remaining {
             let after = if needed > 0 { " and the elements before it" } else { "" };
-            return Err(format!(
-                "element '{}' claims {} entries, which need at least {element_bytes} bytes, but only {remaining} follow the header{after}",
-                def.name, def.count
+            return Err((
+                def.line,
+                format!(
+                    "element '{}' claims {} entries, which need at least {element_bytes} bytes, but only {remaining} follow the header{after}",
+                    def.name, def.count
+                ),
             ));
         }
         needed += element_bytes;
@@ -439,9 +340,7 @@ fn check_counts_fit(header: &Header, payload_len: u64) -> Result<(), String> {
     Ok(())
 }
 
-fn one_line(s: &str) -> String {
-    s.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
+#[cfg(test)]
+mod exporter_quirks;
 #[cfg(test)]
 mod tests;

@@ -9,9 +9,9 @@
 
 use crate::Location;
 use crate::ply::{Attributes, ElementPlan, Kind, N_SLOTS, PropPlan, Slot};
+use crate::ply_header::Encoding;
 use lucent_geom::{Vec2, Vec3};
 use lucent_shading::color::srgb_to_linear;
-use ply_rs::ply::{Encoding, ScalarType};
 use std::io::Read;
 
 /// Bytes read from the file at a time.
@@ -35,22 +35,22 @@ pub(crate) enum Ty {
     F64,
 }
 
-impl From<&ScalarType> for Ty {
-    fn from(t: &ScalarType) -> Self {
-        match t {
-            ScalarType::Char => Ty::I8,
-            ScalarType::UChar => Ty::U8,
-            ScalarType::Short => Ty::I16,
-            ScalarType::UShort => Ty::U16,
-            ScalarType::Int => Ty::I32,
-            ScalarType::UInt => Ty::U32,
-            ScalarType::Float => Ty::F32,
-            ScalarType::Double => Ty::F64,
-        }
-    }
-}
-
 impl Ty {
+    /// The type a header names: the PLY 1.0 names and their sized aliases.
+    pub(crate) fn from_name(name: &[u8]) -> Option<Ty> {
+        Some(match name {
+            b"char" | b"int8" => Ty::I8,
+            b"uchar" | b"uint8" => Ty::U8,
+            b"short" | b"int16" => Ty::I16,
+            b"ushort" | b"uint16" => Ty::U16,
+            b"int" | b"int32" => Ty::I32,
+            b"uint" | b"uint32" => Ty::U32,
+            b"float" | b"float32" => Ty::F32,
+            b"double" | b"float64" => Ty::F64,
+            _ => return None,
+        })
+    }
+
     /// Bytes of one binary value.
     pub(crate) fn size(self) -> usize {
         match self {
@@ -207,6 +207,9 @@ pub(crate) struct Body<'p> {
     pub n_vertices: usize,
     /// Lines before the body (ASCII line numbers start after them).
     pub header_lines: usize,
+    /// The byte that ends an ASCII line: `\n`, or `\r` in a file whose
+    /// header ends in a lone CR (the other is then read as a space).
+    pub line_end: u8,
     /// File length, to refuse lists longer than what is left.
     pub file_len: u64,
 }
@@ -243,11 +246,6 @@ impl<'t> Iterator for Words<'t> {
     }
 }
 
-#[inline]
-fn parse_f32(word: &[u8]) -> Option<f32> {
-    std::str::from_utf8(word).ok()?.parse().ok()
-}
-
 /// A decimal integer (optional sign, at most 18 digits).
 #[inline]
 fn parse_int(word: &[u8]) -> Option<i64> {
@@ -278,13 +276,13 @@ fn show(word: &[u8]) -> String {
     }
 }
 
-/// Makes the next line available; returns its length without the line
-/// break and with it, or `None` at the end of the file.
-fn next_line(input: &mut Input<'_>) -> Result<Option<(usize, usize)>, String> {
+/// Makes the next line, ended by `line_end`, available; returns its length
+/// without the line break and with it, or `None` at the end of the file.
+fn next_line(input: &mut Input<'_>, line_end: u8) -> Result<Option<(usize, usize)>, String> {
     let mut searched = 0;
     loop {
         let avail = input.available();
-        if let Some(nl) = avail[searched..].iter().position(|&b| b == b'\n') {
+        if let Some(nl) = avail[searched..].iter().position(|&b| b == line_end) {
             let len = searched + nl;
             return Ok(Some((len, len + 1)));
         }
@@ -312,7 +310,7 @@ fn read_ascii_element(
     for entry in 0..plan.count {
         // Skip blank lines between entries.
         let (len, total) = loop {
-            let next = next_line(input).map_err(|m| (Some(Location::Line(*line + 1)), m))?;
+            let next = next_line(input, body.line_end).map_err(|m| (Some(Location::Line(*line + 1)), m))?;
             let Some((len, total)) = next else {
                 return Err((
                     Some(Location::Line(*line + 1)),
@@ -363,7 +361,8 @@ fn parse_ascii_entry(
             PropPlan::Scalar { slot, scale, .. } => {
                 let word = next("a property")?;
                 if let Some(s) = slot {
-                    let v = parse_f32(word).ok_or_else(|| format!("'{}' is not a number", show(word)))?;
+                    let v =
+                        crate::number::parse_f32(word).ok_or_else(|| format!("'{}' is not a number", show(word)))?;
                     rec[s as usize] = v * scale;
                 }
             }

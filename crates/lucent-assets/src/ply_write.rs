@@ -118,8 +118,7 @@ mod tests {
             PlyFormat::BinaryLittleEndian,
             PlyFormat::BinaryBigEndian,
         ] {
-            let bytes: &'static [u8] = encode_ply(&mesh, format).leak();
-            let src = MemorySource::new().with_file("m.ply", bytes);
+            let src = MemorySource::new().with_file("m.ply", encode_ply(&mesh, format));
             let loaded = load_mesh_from(&src, Path::new("m.ply")).map(|(parts, _)| parts);
             let Ok([part]) = loaded.as_deref() else {
                 panic!("{format:?}: {:?}", loaded.map(|p| p.len()));

@@ -93,19 +93,8 @@ impl Loader<'_> {
         env.background = d.environment.background.0;
         env.ambient = d.environment.ambient.0;
         env.shadowed_ambient = d.environment.shadowed_ambient;
-        let r = &d.render;
-        let s = RenderSettings::default();
-        self.scene.settings = RenderSettings {
-            width: r.width.unwrap_or(s.width),
-            height: r.height.unwrap_or(s.height),
-            spp: r.spp.unwrap_or(s.spp),
-            max_depth: r.max_depth.unwrap_or(s.max_depth),
-            min_weight: r.min_weight.unwrap_or(s.min_weight),
-            rr_depth: r.rr_depth.unwrap_or(s.rr_depth),
-            shading: r.shading.unwrap_or(s.shading),
-            seed: r.seed.unwrap_or(s.seed),
-            integrator: r.integrator.unwrap_or(s.integrator),
-        };
+        self.scene.settings = RenderSettings::default();
+        d.render.apply(&mut self.scene.settings);
     }
 
     fn spawn_materials(&mut self) -> Result<(), AssetError> {

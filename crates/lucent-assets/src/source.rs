@@ -73,10 +73,19 @@ fn is_a_directory(path: &Path) -> AssetError {
 }
 
 /// Files held in memory, keyed by normalised relative path (see
-/// [`normalize_path`]); used for assets compiled into a binary.
+/// [`normalize_path`]): assets compiled into a binary (borrowed, `'static`)
+/// or bytes made at run time (owned), such as a test's or a fuzzer's.
+///
+/// ```
+/// use lucent_assets::{AssetSource, MemorySource};
+/// let source = MemorySource::new()
+///     .with_file("built-in.txt", b"compiled in")
+///     .with_file("made.txt", format!("made at {}", "run time").into_bytes());
+/// assert_eq!(&*source.read("made.txt".as_ref()).unwrap(), b"made at run time");
+/// ```
 #[derive(Clone, Debug, Default)]
 pub struct MemorySource {
-    files: HashMap<PathBuf, &'static [u8]>,
+    files: HashMap<PathBuf, Cow<'static, [u8]>>,
 }
 
 impl MemorySource {
@@ -85,9 +94,10 @@ impl MemorySource {
         Self::default()
     }
 
-    /// Adds a file under `path`.
-    pub fn with_file(mut self, path: &str, bytes: &'static [u8]) -> Self {
-        self.files.insert(normalize_path(Path::new(path)), bytes);
+    /// Adds a file under `path`: `&'static [u8]` is borrowed, a `Vec<u8>`
+    /// is owned.
+    pub fn with_file(mut self, path: &str, bytes: impl Into<Cow<'static, [u8]>>) -> Self {
+        self.files.insert(normalize_path(Path::new(path)), bytes.into());
         self
     }
 }
@@ -96,7 +106,7 @@ impl AssetSource for MemorySource {
     fn read(&self, path: &Path) -> Result<Cow<'_, [u8]>, AssetError> {
         self.files
             .get(&normalize_path(path))
-            .map(|b| Cow::Borrowed(*b))
+            .map(|b| Cow::Borrowed(&**b))
             .ok_or_else(|| AssetError::Io {
                 path: path.to_owned(),
                 error: std::io::Error::new(std::io::ErrorKind::NotFound, "not among the built-in assets"),

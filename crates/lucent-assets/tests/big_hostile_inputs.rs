@@ -23,7 +23,7 @@ fn many_missing_materials_are_reported_once_each_in_one_short_warning() {
         let _ = write!(obj, "usemtl m{i}\nf 1 2 3\nusemtl a\nf 1 2 3\n");
     }
     let src = MemorySource::new()
-        .with_file("x.obj", obj.into_bytes().leak())
+        .with_file("x.obj", obj.into_bytes())
         .with_file("m.mtl", b"newmtl a\nKd 1 0 0\n");
     let loaded = load_mesh_from(&src, Path::new("x.obj"));
     let Ok((parts, report)) = loaded else {
@@ -49,7 +49,7 @@ fn a_header_of_many_elements_is_checked_in_linear_time() {
     }
     ply.push_str("element vertex 0\nproperty float x\nelement e7 0\nproperty char x\nend_header\n");
     assert!(ply.len() < 1 << 20, "within the 1 MiB header limit");
-    let src = MemorySource::new().with_file("t.ply", ply.into_bytes().leak());
+    let src = MemorySource::new().with_file("t.ply", ply.into_bytes());
     let err = load_mesh_from(&src, Path::new("t.ply"))
         .map(|_| ())
         .map_err(|e| e.to_string());
@@ -70,8 +70,8 @@ fn a_material_library_named_many_times_is_read_once() {
         let _ = write!(mtl, "newmtl m{i}\nKd 0.5 0.5 0.5\nNs {i}\n");
     }
     let src = MemorySource::new()
-        .with_file("x.obj", obj.into_bytes().leak())
-        .with_file("m.mtl", mtl.into_bytes().leak());
+        .with_file("x.obj", obj.into_bytes())
+        .with_file("m.mtl", mtl.into_bytes());
     let loaded = load_mesh_from(&src, Path::new("x.obj"));
     let Ok((parts, report)) = loaded else {
         panic!("{:?}", loaded.map(|_| ()));
@@ -98,8 +98,8 @@ fn one_position_with_a_key_per_corner_unifies_in_linear_time() {
         let _ = writeln!(uvs, "f 1/{} 2/1 3/1", i + 1);
     }
     let src = MemorySource::new()
-        .with_file("s.obj", smoothing.into_bytes().leak())
-        .with_file("t.obj", uvs.into_bytes().leak());
+        .with_file("s.obj", smoothing.into_bytes())
+        .with_file("t.obj", uvs.into_bytes());
     for (file, vertices) in [("s.obj", 3 * n), ("t.obj", n + 2)] {
         let loaded = load_mesh_from(&src, Path::new(file));
         let Ok((parts, _)) = loaded else {

@@ -70,14 +70,11 @@ pub enum TriangleTest {
     MollerTrumbore,
 }
 
-impl TriangleTest {
-    /// A short lowercase name (`watertight`, `moller-trumbore`).
-    pub fn name(self) -> &'static str {
-        match self {
-            TriangleTest::Watertight => "watertight",
-            TriangleTest::MollerTrumbore => "moller-trumbore",
-        }
-    }
+impl crate::Named for TriangleTest {
+    const NAMES: &'static [(&'static str, Self)] = &[
+        ("watertight", TriangleTest::Watertight),
+        ("moller-trumbore", TriangleTest::MollerTrumbore),
+    ];
 }
 
 /// A ray prepared for many triangle tests: the per-ray part of both tests

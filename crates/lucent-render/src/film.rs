@@ -1,19 +1,24 @@
 //! The film: per-pixel radiance sums, and conversion to 8-bit sRGB.
 
+use crate::ExactRgb;
 use lucent_geom::{DVec3, Vec3};
 use lucent_shading::color::linear_to_srgb;
 use std::fmt;
 
 /// Accumulated linear radiance for every pixel, row 0 at the top.
 ///
-/// Sums are kept in f64: an f32 sum of 1e5 samples drifts by about 1e-3
-/// of its mean (each addition rounds to the sum's coarser ulp), an f64 sum
-/// of 1e6 by under 1e-9; the mean is rounded to f32 once, on the way out.
+/// Sums are kept exact ([`ExactRgb`]: 128-bit fixed point), so they do not
+/// depend on the order samples are added in: films holding disjoint sets of
+/// a render's samples [merge](Film::merge) into the very film one render of
+/// all of them makes. (A floating-point sum would not: an f32 sum of 1e5
+/// samples drifts by about 1e-3 of its mean, and even an f64 sum rounds
+/// differently when its samples are grouped differently.) The sum is
+/// rounded to f64 and the mean to f32 once, on the way out.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Film {
     width: u32,
     height: u32,
-    pub(crate) sum: Vec<DVec3>,
+    pub(crate) sum: Vec<ExactRgb>,
     pub(crate) n_samples: u32,
 }
 
@@ -23,9 +28,46 @@ impl Film {
         Self {
             width,
             height,
-            sum: vec![DVec3::ZERO; width as usize * height as usize],
+            sum: vec![ExactRgb::ZERO; width as usize * height as usize],
             n_samples: 0,
         }
+    }
+
+    /// A film from its exact per-pixel sums (row-major, row 0 at the top)
+    /// and the samples each pixel holds, as [`Film::sums`] and
+    /// [`Film::n_samples`] give them; `None` unless there are exactly
+    /// `width * height` sums.
+    pub fn from_sums(width: u32, height: u32, n_samples: u32, sums: Vec<ExactRgb>) -> Option<Self> {
+        (sums.len() == width as usize * height as usize).then_some(Self {
+            width,
+            height,
+            sum: sums,
+            n_samples,
+        })
+    }
+
+    /// The exact per-pixel sums, row-major, row 0 at the top.
+    pub fn sums(&self) -> &[ExactRgb] {
+        &self.sum
+    }
+
+    /// Adds the samples of `other`, a film of the same size holding other
+    /// samples of the same render (e.g. another share of its sample
+    /// indices): the result is exactly the film of all of them, whatever
+    /// the order films are merged in. `false`, and nothing changes, when
+    /// the sizes differ or the sample count would overflow.
+    pub fn merge(&mut self, other: &Film) -> bool {
+        let Some(n) = self.n_samples.checked_add(other.n_samples) else {
+            return false;
+        };
+        if (self.width, self.height) != (other.width, other.height) {
+            return false;
+        }
+        for (a, b) in self.sum.iter_mut().zip(&other.sum) {
+            a.merge(b);
+        }
+        self.n_samples = n;
+        true
     }
 
     /// A film holding one sample of each given pixel (row-major, row 0 at
@@ -34,7 +76,14 @@ impl Film {
         (pixels.len() == width as usize * height as usize).then_some(Self {
             width,
             height,
-            sum: pixels.into_iter().map(Vec3::as_dvec3).collect(),
+            sum: pixels
+                .into_iter()
+                .map(|p| {
+                    let mut s = ExactRgb::ZERO;
+                    s.add_sample(p);
+                    s
+                })
+                .collect(),
             n_samples: 1,
         })
     }
@@ -56,14 +105,16 @@ impl Film {
 
     /// Forgets all samples.
     pub fn clear(&mut self) {
-        self.sum.fill(DVec3::ZERO);
+        self.sum.fill(ExactRgb::ZERO);
         self.n_samples = 0;
     }
 
     /// Mean radiance of pixel `(x, y)` (black before the first sample).
     pub fn pixel(&self, x: u32, y: u32) -> Vec3 {
         let i = y as usize * self.width as usize + x as usize;
-        self.sum.get(i).map_or(Vec3::ZERO, |s| (*s * self.scale()).as_vec3())
+        self.sum
+            .get(i)
+            .map_or(Vec3::ZERO, |s| (s.to_dvec3() * self.scale()).as_vec3())
     }
 
     fn scale(&self) -> f64 {
@@ -78,13 +129,16 @@ impl Film {
     /// row 0 at the top (what a linear EXR holds).
     pub fn to_linear_rgb(&self) -> Vec<f32> {
         let k = self.scale();
-        self.sum.iter().flat_map(|s| (*s * k).as_vec3().to_array()).collect()
+        self.sum
+            .iter()
+            .flat_map(|s| (s.to_dvec3() * k).as_vec3().to_array())
+            .collect()
     }
 
     /// Mean radiance of every pixel, row-major.
     pub fn to_linear(&self) -> Vec<Vec3> {
         let k = self.scale();
-        self.sum.iter().map(|s| (*s * k).as_vec3()).collect()
+        self.sum.iter().map(|s| (s.to_dvec3() * k).as_vec3()).collect()
     }
 
     /// 8-bit sRGB, RGB interleaved, row 0 at the top: each channel clamped to
@@ -108,7 +162,7 @@ impl Film {
         let k = self.scale() * f64::from(exposure_ev).exp2();
         let mut out = Vec::with_capacity(self.sum.len() * 3);
         for s in &self.sum {
-            for c in (*s * k).as_vec3().to_array() {
+            for c in (s.to_dvec3() * k).as_vec3().to_array() {
                 out.push((linear_to_srgb(c) * 255.0 + 0.5) as u8);
             }
         }
@@ -186,8 +240,8 @@ mod tests {
     #[test]
     fn film_averages_samples_and_counts_nan() {
         let mut film = Film::new(2, 1);
-        film.sum[0] = DVec3::splat(2.0);
-        film.sum[1] = DVec3::new(f64::NAN, 0.0, 0.0);
+        film.sum[0].add_sample(Vec3::splat(2.0));
+        film.sum[1].add_sample(Vec3::new(f32::NAN, 0.0, 0.0));
         film.n_samples = 2;
         assert_eq!(film.pixel(0, 0), Vec3::ONE);
         assert_eq!(film.to_srgb8(), vec![255, 255, 255, 0, 0, 0]);
@@ -195,5 +249,18 @@ mod tests {
         assert_eq!((s.n_non_finite, s.mean_rgb), (1, Vec3::ONE));
         film.clear();
         assert_eq!((film.n_samples(), film.pixel(0, 0)), (0, Vec3::ZERO));
+    }
+
+    #[test]
+    fn merging_films_adds_their_samples_and_refuses_other_sizes() {
+        let one = |v: f32| Film::from_pixels(2, 1, vec![Vec3::splat(v), Vec3::ZERO]).unwrap_or_else(|| Film::new(2, 1));
+        let mut a = one(1.0);
+        assert!(a.merge(&one(3.0)));
+        assert_eq!((a.n_samples(), a.pixel(0, 0)), (2, Vec3::splat(2.0)));
+        assert!(!a.merge(&Film::new(1, 1)));
+        assert_eq!(a.n_samples(), 2);
+        let b = Film::from_sums(2, 1, a.n_samples(), a.sums().to_vec());
+        assert_eq!(b.as_ref(), Some(&a));
+        assert!(Film::from_sums(3, 1, 1, a.sums().to_vec()).is_none());
     }
 }

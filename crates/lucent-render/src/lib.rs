@@ -2,17 +2,21 @@
 //!
 //! The spine: [`extract`] flattens a [`Scene`](lucent_scene::Scene) (an ECS
 //! world) into a [`RenderScene`] of plain vectors addressed by `u32`, with a
-//! two-level BVH; [`render_samples`] then traces it with the report's
-//! Whitted integrator ([`whitted`]) into a [`Film`], in parallel over image
-//! rows with rayon. [`progressive`] renders to a time budget or, sampling
-//! adaptively, to an estimated error.
+//! two-level BVH; [`render_samples`] then traces it into a [`Film`], in
+//! parallel over image rows with rayon, with the integrator the settings
+//! name: the report's Whitted model ([`whitted`]) or a path tracer with
+//! next-event estimation and MIS ([`path`]). Both read a hit through one
+//! record ([`interaction`]). [`progressive`] renders to a time budget or,
+//! sampling adaptively, to an estimated error; [`quality`] holds the named
+//! presets.
 //!
 //! Invariants:
 //! - only `extract.rs` sees hecs; the kernel works on [`RenderScene`];
 //! - the kernel cannot fail and allocates nothing per ray;
 //! - determinism: every (pixel, sample, seed) has its own random stream and
-//!   each pixel accumulates its samples in a fixed order, so the same scene,
-//!   settings and seed give the same bytes on 1 or N threads.
+//!   each pixel sums its samples exactly ([`ExactRgb`]), so the same scene,
+//!   settings and seed give the same bytes on 1 or N threads, and shares of
+//!   the samples rendered apart merge into those bytes ([`Film::merge`]).
 //!
 //! ```
 //! use lucent_render::{extract, render, RenderSettings};
@@ -33,12 +37,14 @@
 #![forbid(unsafe_code)]
 
 mod camera;
+pub mod exact;
 mod extract;
 mod film;
 pub mod flat;
 pub mod interaction;
 pub mod lights;
 pub mod metrics;
+pub mod partial;
 pub mod path;
 pub mod progressive;
 pub mod quality;
@@ -46,13 +52,14 @@ mod render;
 pub mod whitted;
 
 pub use camera::PinholeCamera;
+pub use exact::ExactRgb;
 pub use extract::{
     ExtractError, ExtractOptions, RenderInstance, RenderScene, SceneFeatures, VertexReads, extract, extract_with,
     render_origin, scene_features,
 };
 pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;
-pub use lucent_scene::{Integrator, RenderSettings, Shading};
+pub use lucent_scene::{Integrator, RenderOverrides, RenderSettings, Shading};
 pub use progressive::{AdaptiveOutput, render_for, render_to_error};
 pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{

@@ -9,11 +9,32 @@
 //! - [`psnr`]: `20 log10(1 / rmse)` in decibels, taking radiance 1 (white
 //!   at exposure 0) as the peak.
 //!
+//! [`median`] is the statistic every benchmark quotes.
+//!
 //! Non-finite values in either image count as an error of 1 per channel
 //! rather than poisoning the sum, so a broken pixel shows as error instead
 //! of a NaN score.
 
 use lucent_geom::Vec3;
+
+/// Median of measurements (mean of the middle two for an even count; NaN
+/// for none). Sorts `values` in place, so callers may read the extremes
+/// afterwards.
+///
+/// ```
+/// use lucent_render::metrics::median;
+/// let mut times = [0.3, 0.1, 0.2, 0.9];
+/// assert_eq!(median(&mut times), 0.25);
+/// assert_eq!((times[0], times[3]), (0.1, 0.9));
+/// ```
+pub fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    match values.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => values[n / 2],
+        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
+    }
+}
 
 /// Error measures of one image against a reference.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -61,7 +61,7 @@
 //! ```
 
 use crate::render::PixelSampler;
-use crate::{Film, RayStats, RenderOutput, RenderScene, RenderSettings};
+use crate::{ExactRgb, Film, RayStats, RenderOutput, RenderScene, RenderSettings};
 use lucent_geom::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -98,7 +98,7 @@ pub fn render_for(
     let first = start.elapsed().as_secs_f64();
     let mut pace = [first, first];
     let budget_s = budget.as_secs_f64();
-    let mut backup: Vec<DVec3> = Vec::new();
+    let mut backup: Vec<ExactRgb> = Vec::new();
     while film.n_samples() < cap {
         let per_spp = pace[0].min(pace[1]).max(1e-9);
         let remaining = deadline.saturating_duration_since(Instant::now()).as_secs_f64();
@@ -156,7 +156,7 @@ fn pass(
                     return stats;
                 }
                 for s in samples.clone() {
-                    *px += sampler.sample(col as u32, row as u32, s, &mut stats);
+                    px.add_sample(sampler.sample(col as u32, row as u32, s, &mut stats));
                 }
             }
             stats
@@ -233,7 +233,7 @@ struct Tile {
     n: u32,
     /// Samples to have after the next round.
     next: u32,
-    sum: Vec<DVec3>,
+    sum: Vec<ExactRgb>,
     sum_sq: Vec<DVec3>,
 }
 
@@ -251,9 +251,10 @@ impl Tile {
         let n = f64::from(self.n);
         let mut v = 0.0;
         for (s, q) in self.sum.iter().zip(&self.sum_sq) {
+            let s = s.to_dvec3();
             // (sum of squares - n mean^2) / (n - 1), per channel; rounding
             // can make it slightly negative where all samples agree.
-            let var = ((*q - *s * *s / n) / (n - 1.0)).max(DVec3::ZERO);
+            let var = ((*q - s * s / n) / (n - 1.0)).max(DVec3::ZERO);
             v += var.element_sum();
         }
         v
@@ -262,7 +263,7 @@ impl Tile {
     /// Sum over the tile's pixels and channels of the pixel means.
     fn mean_sum(&self) -> f64 {
         let k = 1.0 / f64::from(self.n.max(1));
-        self.sum.iter().map(|s| (*s * k).element_sum()).sum()
+        self.sum.iter().map(|s| (s.to_dvec3() * k).element_sum()).sum()
     }
 
     /// Takes samples `n..next` of every pixel.
@@ -272,7 +273,8 @@ impl Tile {
             let (col, row) = (self.x0 + i as u32 % self.w, self.y0 + i as u32 / self.w);
             for idx in self.n..self.next {
                 let v = sampler.sample(col, row, idx, &mut stats);
-                *s += v;
+                s.add_sample(v);
+                let v = v.as_dvec3();
                 *q += v * v;
             }
         }
@@ -388,7 +390,7 @@ pub fn render_to_error(scene: &RenderScene, settings: &RenderSettings, target: f
                 h,
                 n: 0,
                 next: MIN_SPP.min(max_spp),
-                sum: vec![DVec3::ZERO; px],
+                sum: vec![ExactRgb::ZERO; px],
                 sum_sq: vec![DVec3::ZERO; px],
             });
         }
@@ -420,7 +422,7 @@ pub fn render_to_error(scene: &RenderScene, settings: &RenderSettings, target: f
         for (i, s) in t.sum.iter().enumerate() {
             let (col, row) = (t.x0 + i as u32 % t.w, t.y0 + i as u32 / t.w);
             let at = (row * width + col) as usize;
-            means[at] = (*s * k).as_vec3();
+            means[at] = (s.to_dvec3() * k).as_vec3();
             counts[at] = t.n;
         }
         total_samples += u64::from(t.n) * t.pixels() as u64;
@@ -546,10 +548,13 @@ mod tests {
             "1 s budget, large passes: {elapsed:.3} s, {} spp, one spp {t1:.3} s",
             out.film.n_samples()
         );
+        // The first sample per pixel is always taken whole, so on a loaded
+        // machine where it alone outlasts the budget, the render ends after
+        // it (one sample) instead: the deadline only cuts later passes.
+        let spp = out.film.n_samples();
         assert!(
-            (0.9..=1.1).contains(&elapsed),
-            "{elapsed:.3} s, {} spp",
-            out.film.n_samples()
+            (0.9..=1.1).contains(&elapsed) || (elapsed > 1.1 && spp == 1),
+            "{elapsed:.3} s, {spp} spp"
         );
     }
 

@@ -19,7 +19,7 @@
 //! flag (`--shading phong`), not a preset. `cargo xtask tradeoff` measures
 //! the time and error of each preset.
 
-use crate::{BuildQuality, ExtractOptions, Integrator, RenderSettings, Shading};
+use crate::{BuildQuality, ExtractOptions, Integrator, RenderOverrides, RenderSettings, Shading};
 
 /// One named speed-for-accuracy setting.
 ///
@@ -29,7 +29,7 @@ use crate::{BuildQuality, ExtractOptions, Integrator, RenderSettings, Shading};
 /// let preview = quality::preset("preview").expect("a built-in preset");
 /// preview.apply(&mut settings);
 /// assert_eq!((settings.width, settings.height), (320, 180));
-/// assert_eq!(settings.integrator, preview.integrator);
+/// assert_eq!(Some(settings.integrator), preview.settings.integrator);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QualityPreset {
@@ -40,22 +40,10 @@ pub struct QualityPreset {
     pub description: &'static str,
     /// Fraction of the scene's width and height rendered (1.0: full size).
     pub resolution_scale: f32,
-    /// Samples (primary rays) per pixel.
-    pub spp: u32,
-    /// Light transport: the report's Whitted model or the path tracer.
-    pub integrator: Integrator,
-    /// Whitted: lighting at the vertices (Gouraud) or per pixel (Phong).
-    /// The path tracer always shades per pixel and ignores it.
-    pub shading: Shading,
-    /// Path length limit, as [`RenderSettings::max_depth`] (Whitted:
-    /// recursion depth; path: segments from the camera).
-    pub max_depth: u32,
-    /// Whitted: rays whose weight falls below this are not traced. Ignored
-    /// by the path tracer.
-    pub min_weight: f32,
-    /// Path tracer: bounces before Russian roulette may end a path.
-    /// Ignored by Whitted (kept at the settings' default).
-    pub rr_depth: u32,
+    /// The settings it sets: samples, integrator, shading, depth, minimum
+    /// weight and roulette (never the size, which the scale gives, or the
+    /// seed, which is the caller's).
+    pub settings: RenderOverrides,
     /// Effort of the BVH builds.
     pub bvh_quality: BuildQuality,
 }
@@ -66,48 +54,60 @@ pub const PRESETS: [QualityPreset; 4] = [
         name: "preview",
         description: "the report's Whitted model with Gouraud shading, half resolution, 1 sample: a quick look",
         resolution_scale: 0.5,
-        spp: 1,
-        integrator: Integrator::Whitted,
-        shading: Shading::Gouraud,
-        max_depth: 2,
-        min_weight: 0.05,
-        rr_depth: 5,
+        settings: RenderOverrides {
+            spp: Some(1),
+            integrator: Some(Integrator::Whitted),
+            shading: Some(Shading::Gouraud),
+            max_depth: Some(2),
+            min_weight: Some(0.05),
+            rr_depth: Some(5),
+            ..RenderOverrides::NONE
+        },
         bvh_quality: BuildQuality::Fast,
     },
     QualityPreset {
         name: "interactive",
         description: "path tracing, 8 samples, paths of up to 5 segments: physically based but noisy",
         resolution_scale: 1.0,
-        spp: 8,
-        integrator: Integrator::Path,
-        shading: Shading::Phong,
-        max_depth: 5,
-        min_weight: 0.01,
-        rr_depth: 3,
+        settings: RenderOverrides {
+            spp: Some(8),
+            integrator: Some(Integrator::Path),
+            shading: Some(Shading::Phong),
+            max_depth: Some(5),
+            min_weight: Some(0.01),
+            rr_depth: Some(3),
+            ..RenderOverrides::NONE
+        },
         bvh_quality: BuildQuality::Default,
     },
     QualityPreset {
         name: "final",
         description: "path tracing, 64 samples, paths of up to 8 segments: a finished image, some noise",
         resolution_scale: 1.0,
-        spp: 64,
-        integrator: Integrator::Path,
-        shading: Shading::Phong,
-        max_depth: 8,
-        min_weight: 0.01,
-        rr_depth: 5,
+        settings: RenderOverrides {
+            spp: Some(64),
+            integrator: Some(Integrator::Path),
+            shading: Some(Shading::Phong),
+            max_depth: Some(8),
+            min_weight: Some(0.01),
+            rr_depth: Some(5),
+            ..RenderOverrides::NONE
+        },
         bvh_quality: BuildQuality::Default,
     },
     QualityPreset {
         name: "reference",
         description: "path tracing, 512 samples, paths of up to 16 segments, the best BVH: low noise, for comparisons",
         resolution_scale: 1.0,
-        spp: 512,
-        integrator: Integrator::Path,
-        shading: Shading::Phong,
-        max_depth: 16,
-        min_weight: 0.01,
-        rr_depth: 8,
+        settings: RenderOverrides {
+            spp: Some(512),
+            integrator: Some(Integrator::Path),
+            shading: Some(Shading::Phong),
+            max_depth: Some(16),
+            min_weight: Some(0.01),
+            rr_depth: Some(8),
+            ..RenderOverrides::NONE
+        },
         bvh_quality: BuildQuality::High,
     },
 ];
@@ -116,7 +116,7 @@ pub const PRESETS: [QualityPreset; 4] = [
 ///
 /// ```
 /// use lucent_render::quality::{PRESETS, preset};
-/// assert_eq!(preset("final").map(|p| p.spp), Some(PRESETS[2].spp));
+/// assert_eq!(preset("final").map(|p| p.settings.spp), Some(PRESETS[2].settings.spp));
 /// assert!(preset("ultra").is_none());
 /// ```
 pub fn preset(name: &str) -> Option<&'static QualityPreset> {
@@ -132,19 +132,14 @@ pub fn preset_names() -> String {
 impl QualityPreset {
     /// Writes the preset into `settings`: width and height become the
     /// current ones times [`resolution_scale`](Self::resolution_scale)
-    /// (rounded to the nearest pixel, at least 1), and `spp`, `integrator`,
-    /// `shading`, `max_depth`, `min_weight` and `rr_depth` are replaced.
-    /// The seed is kept. Applying twice scales the size twice, so apply a
-    /// preset to the scene's own settings, then explicit overrides.
+    /// (rounded to the nearest pixel, at least 1), then
+    /// [`settings`](Self::settings) applies. The seed is kept. Applying
+    /// twice scales the size twice, so apply a preset to the scene's own
+    /// settings, then explicit overrides.
     pub fn apply(&self, settings: &mut RenderSettings) {
         settings.width = scale_dimension(settings.width, self.resolution_scale);
         settings.height = scale_dimension(settings.height, self.resolution_scale);
-        settings.spp = self.spp;
-        settings.integrator = self.integrator;
-        settings.shading = self.shading;
-        settings.max_depth = self.max_depth;
-        settings.min_weight = self.min_weight;
-        settings.rr_depth = self.rr_depth;
+        self.settings.apply(settings);
     }
 
     /// The extract options this preset renders with (its BVH build effort;
@@ -177,17 +172,24 @@ fn scale_dimension(size: u32, scale: f32) -> u32 {
 mod tests {
     use super::*;
 
+    /// What the preset sets, on the default settings.
+    fn set(p: &QualityPreset) -> RenderSettings {
+        let mut s = RenderSettings::default();
+        p.settings.apply(&mut s);
+        s
+    }
+
     /// Path-tracer segments a preset's depth stands for: a Whitted depth
     /// `d` follows the same chains as a path depth `d + 2`.
     fn path_depth(p: &QualityPreset) -> u32 {
-        match p.integrator {
-            Integrator::Whitted => p.max_depth + 2,
-            Integrator::Path => p.max_depth,
+        match set(p).integrator {
+            Integrator::Whitted => set(p).max_depth + 2,
+            Integrator::Path => set(p).max_depth,
         }
     }
 
     fn model_rank(p: &QualityPreset) -> u32 {
-        match (p.integrator, p.shading) {
+        match (set(p).integrator, set(p).shading) {
             (Integrator::Whitted, Shading::Gouraud) => 0,
             (Integrator::Whitted, Shading::Phong) => 1,
             (Integrator::Path, _) => 2,
@@ -207,7 +209,7 @@ mod tests {
         for pair in PRESETS.windows(2) {
             let (a, b) = (&pair[0], &pair[1]);
             assert!(a.resolution_scale <= b.resolution_scale, "{} {}", a.name, b.name);
-            assert!(a.spp <= b.spp, "{} {}", a.name, b.name);
+            assert!(set(a).spp <= set(b).spp, "{} {}", a.name, b.name);
             assert!(path_depth(a) <= path_depth(b), "{} {}", a.name, b.name);
             assert!(model_rank(a) <= model_rank(b), "{} {}", a.name, b.name);
             assert!(
@@ -219,21 +221,21 @@ mod tests {
             // Each step costs more in at least one of these.
             let pixels = |p: &QualityPreset| p.resolution_scale * p.resolution_scale;
             assert!(
-                pixels(a) < pixels(b) || a.spp < b.spp || model_rank(a) < model_rank(b),
+                pixels(a) < pixels(b) || set(a).spp < set(b).spp || model_rank(a) < model_rank(b),
                 "{} {}",
                 a.name,
                 b.name
             );
-            if a.integrator == Integrator::Whitted && b.integrator == Integrator::Whitted {
-                assert!(a.min_weight >= b.min_weight, "{} {}", a.name, b.name);
+            if set(a).integrator == Integrator::Whitted && set(b).integrator == Integrator::Whitted {
+                assert!(set(a).min_weight >= set(b).min_weight, "{} {}", a.name, b.name);
             }
-            if a.integrator == Integrator::Path && b.integrator == Integrator::Path {
-                assert!(a.rr_depth <= b.rr_depth, "{} {}", a.name, b.name);
+            if set(a).integrator == Integrator::Path && set(b).integrator == Integrator::Path {
+                assert!(set(a).rr_depth <= set(b).rr_depth, "{} {}", a.name, b.name);
             }
         }
         // The cheapest is the report's model, the costliest physically based.
         assert_eq!(model_rank(&PRESETS[0]), 0);
-        assert_eq!(PRESETS[PRESETS.len() - 1].integrator, Integrator::Path);
+        assert_eq!(set(&PRESETS[PRESETS.len() - 1]).integrator, Integrator::Path);
         assert!(PRESETS[0].resolution_scale < 1.0);
         assert_eq!(PRESETS[PRESETS.len() - 1].resolution_scale, 1.0);
     }
@@ -242,12 +244,18 @@ mod tests {
     fn presets_are_valid_settings() {
         for p in &PRESETS {
             assert!(p.resolution_scale > 0.0 && p.resolution_scale <= 1.0, "{}", p.name);
-            assert!(p.spp >= 1 && p.rr_depth >= 1 && p.max_depth <= 64, "{}", p.name);
-            assert!((0.0..=1.0).contains(&p.min_weight), "{}", p.name);
+            assert!(
+                set(p).spp >= 1 && set(p).rr_depth >= 1 && set(p).max_depth <= 64,
+                "{}",
+                p.name
+            );
+            assert!((0.0..=1.0).contains(&set(p).min_weight), "{}", p.name);
+            let o = p.settings;
+            assert_eq!((o.width, o.height, o.seed), (None, None, None), "{}", p.name);
             assert!(!p.description.is_empty() && !p.description.contains('\n'), "{}", p.name);
-            if p.integrator == Integrator::Path {
+            if set(p).integrator == Integrator::Path {
                 // One segment shows only emitters; two add direct light.
-                assert!(p.max_depth >= 3, "{}", p.name);
+                assert!(set(p).max_depth >= 3, "{}", p.name);
             }
         }
     }
@@ -284,12 +292,12 @@ mod tests {
             assert_eq!(
                 (s.spp, s.integrator, s.shading, s.max_depth, s.min_weight, s.rr_depth),
                 (
-                    preset.spp,
-                    preset.integrator,
-                    preset.shading,
-                    preset.max_depth,
-                    preset.min_weight,
-                    preset.rr_depth
+                    set(preset).spp,
+                    set(preset).integrator,
+                    set(preset).shading,
+                    set(preset).max_depth,
+                    set(preset).min_weight,
+                    set(preset).rr_depth
                 )
             );
         };

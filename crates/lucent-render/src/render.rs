@@ -3,7 +3,7 @@
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
-use lucent_geom::{DVec3, Pcg32, hash_u64};
+use lucent_geom::{Pcg32, Vec3, hash_u64};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -190,7 +190,7 @@ impl<'a> PixelSampler<'a> {
 
     /// Radiance of sample `s` of pixel (`col`, `row`).
     #[inline]
-    pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> DVec3 {
+    pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
         let pixel_idx = u64::from(row) * self.width + u64::from(col);
         let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
         match &self.tracer {
@@ -201,13 +201,13 @@ impl<'a> PixelSampler<'a> {
                     (rng.next_f32(), rng.next_f32())
                 };
                 let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
-                whitted.trace_primary(ray, stats).as_dvec3()
+                whitted.trace_primary(ray, stats)
             }
             Tracer::Path(path) => {
                 // Every sample uniform over the pixel: a box filter.
                 let (jx, jy) = (rng.next_f32(), rng.next_f32());
                 let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
-                path.trace_primary(ray, &mut rng, stats).as_dvec3()
+                path.trace_primary(ray, &mut rng, stats)
             }
         }
     }
@@ -235,7 +235,7 @@ fn trace_rows(
             }
             for (col, px) in pixels.iter_mut().enumerate() {
                 for s in samples.clone() {
-                    *px += sampler.sample(col as u32, row as u32, s, &mut stats);
+                    px.add_sample(sampler.sample(col as u32, row as u32, s, &mut stats));
                 }
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
@@ -248,24 +248,9 @@ fn trace_rows(
 mod tests {
     use super::*;
     use crate::extract;
-    use lucent_geom::{Affine3A, Vec3, shapes};
-    use lucent_scene::Scene;
-    use lucent_scene::components::{Camera, Light, Material, OrbitRig};
 
     fn scene() -> RenderScene {
-        let mut scene = Scene::default();
-        let mesh = scene.add_mesh("ball", shapes::icosphere(2));
-        let mat = scene.add_material("white", Material::default());
-        scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
-        scene.add_light(
-            "sun",
-            Light::Directional {
-                to_light: Vec3::Y,
-                intensity: Vec3::ONE,
-            },
-        );
-        scene.add_camera("cam", Camera::default(), OrbitRig::default());
-        match extract(&scene) {
+        match extract(&lucent_scene::fixtures::ball_under_sun()) {
             Ok(rs) => rs,
             Err(e) => panic!("{e}"),
         }

@@ -5,7 +5,7 @@
 //! The format is documented in `docs/scene-format.md`; every table and key is
 //! optional except what an object needs to draw something.
 
-use crate::Shading;
+use lucent_geom::Named;
 use lucent_geom::{Affine3A, Quat, Vec3};
 use serde::Deserialize;
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
@@ -158,7 +158,7 @@ pub struct SceneDesc {
     pub environment: EnvironmentDesc,
     /// `[render]`: default image size and quality.
     #[serde(default)]
-    pub render: RenderDesc,
+    pub render: crate::RenderOverrides,
     /// `[camera]`: the orbit rig; framed automatically when absent.
     pub camera: Option<CameraDesc>,
     /// `[[lights]]`.
@@ -193,36 +193,6 @@ impl Default for EnvironmentDesc {
             shadowed_ambient: e.shadowed_ambient,
         }
     }
-}
-
-/// `[render]`; unset keys keep [`RenderSettings`](crate::RenderSettings)'s defaults.
-#[derive(Clone, Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RenderDesc {
-    /// Image width in pixels (1 to 16384).
-    #[serde(default, deserialize_with = "image_size")]
-    pub width: Option<u32>,
-    /// Image height in pixels (1 to 16384).
-    #[serde(default, deserialize_with = "image_size")]
-    pub height: Option<u32>,
-    /// Samples per pixel (1 to 65536).
-    #[serde(default, deserialize_with = "spp")]
-    pub spp: Option<u32>,
-    /// Path length limit (0 to 64); its meaning depends on the integrator.
-    #[serde(default, deserialize_with = "depth")]
-    pub max_depth: Option<u32>,
-    /// Minimum ray weight (0 to 1).
-    #[serde(default, deserialize_with = "unit_interval")]
-    pub min_weight: Option<f32>,
-    /// Bounces before Russian roulette may end a path (1 to 64).
-    #[serde(default, deserialize_with = "rr_depth")]
-    pub rr_depth: Option<u32>,
-    /// `"gouraud"` or `"phong"`.
-    pub shading: Option<Shading>,
-    /// Sample seed.
-    pub seed: Option<u64>,
-    /// `"whitted"` or `"path"`.
-    pub integrator: Option<crate::Integrator>,
 }
 
 /// `[camera]`: the report's orbit rig and field of view.
@@ -541,7 +511,15 @@ where
     if ok(v) { Ok(v) } else { Err(de::Error::custom(what)) }
 }
 
-fn image_size<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+/// A [`Named`] value given by its name.
+pub(crate) fn named<'de, D: Deserializer<'de>, T: Named>(d: D) -> Result<Option<T>, D::Error> {
+    let name = String::deserialize(d)?;
+    T::from_name(&name)
+        .map(Some)
+        .ok_or_else(|| de::Error::custom(format!("unknown name `{name}`, expected {}", T::name_list())))
+}
+
+pub(crate) fn image_size<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
     checked(
         d,
         |v: u32| (1..=16384).contains(&v),
@@ -550,15 +528,15 @@ fn image_size<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> 
     .map(Some)
 }
 
-fn spp<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+pub(crate) fn spp<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
     checked(d, |v: u32| (1..=65536).contains(&v), "spp runs from 1 to 65536").map(Some)
 }
 
-fn depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+pub(crate) fn depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
     checked(d, |v: u32| v <= 64, "max_depth runs from 0 to 64").map(Some)
 }
 
-fn rr_depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+pub(crate) fn rr_depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
     checked(d, |v: u32| (1..=64).contains(&v), "rr_depth runs from 1 to 64").map(Some)
 }
 
@@ -567,7 +545,7 @@ fn subdivisions<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error
     checked(d, |v: u32| v <= max, "subdivisions run from 0 to 7").map(Some)
 }
 
-fn unit_interval<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+pub(crate) fn unit_interval<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
     checked(d, |v: f32| (0.0..=1.0).contains(&v), "must be between 0 and 1").map(Some)
 }
 

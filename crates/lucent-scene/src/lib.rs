@@ -37,15 +37,18 @@
 pub mod camera;
 pub mod components;
 mod file;
+pub mod fixtures;
 mod scene;
+mod settings;
 mod transform;
 
 pub use file::{
-    CameraDesc, Color, EnvironmentDesc, LightDesc, MaterialDesc, ObjectDesc, RenderDesc, Scale, SceneDesc, SceneFile,
+    CameraDesc, Color, EnvironmentDesc, LightDesc, MaterialDesc, ObjectDesc, Scale, SceneDesc, SceneFile,
     SceneFileError, ShapeKind, TextureDesc,
 };
 pub use hecs;
-pub use scene::{EntityCounts, Environment, Integrator, RenderSettings, Scene, Shading};
+pub use scene::{EntityCounts, Environment, Scene};
+pub use settings::{Integrator, RenderOverrides, RenderSettings, Shading};
 /// A value with its byte range in the scene file's text (from toml).
 pub use toml::Spanned;
 pub use transform::world_from_local;

@@ -1,70 +1,10 @@
 //! The `Scene`: the ECS world plus the scene-wide settings beside it.
 
+use crate::RenderSettings;
 use crate::components::{Camera, Light, Material, MaterialRef, Mesh, MeshRef, Name, OrbitRig, Transform};
 use hecs::{Entity, World};
 use lucent_geom::{Affine3A, TriMesh, Vec3};
 use std::sync::Arc;
-
-/// How the Whitted integrator evaluates the Phong model.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Shading {
-    /// Lighting at the three vertices, interpolated across the triangle (the
-    /// report's S10).
-    #[default]
-    Gouraud,
-    /// Lighting at the hit point with the interpolated normal.
-    Phong,
-}
-
-impl Shading {
-    /// Names as written in scene files and on the command line.
-    pub const NAMES: [(&'static str, Shading); 2] = [("gouraud", Shading::Gouraud), ("phong", Shading::Phong)];
-
-    /// The shading mode called `name`.
-    pub fn from_name(name: &str) -> Option<Shading> {
-        Self::NAMES.iter().find(|(n, _)| *n == name).map(|&(_, s)| s)
-    }
-
-    /// This mode's name.
-    pub fn name(self) -> &'static str {
-        Self::NAMES
-            .iter()
-            .find(|(_, s)| *s == self)
-            .map_or("gouraud", |(n, _)| n)
-    }
-}
-
-/// Which light transport algorithm renders the image.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Integrator {
-    /// The seed report's Whitted ray tracer: Phong local lighting, shadow
-    /// rays, mirror and refraction rays weighted by `kr` and `kt`.
-    #[default]
-    Whitted,
-    /// Unidirectional path tracing of physically based BSDFs, with
-    /// next-event estimation and multiple importance sampling.
-    Path,
-}
-
-impl Integrator {
-    /// Names as written in scene files and on the command line.
-    pub const NAMES: [(&'static str, Integrator); 2] = [("whitted", Integrator::Whitted), ("path", Integrator::Path)];
-
-    /// The integrator called `name`.
-    pub fn from_name(name: &str) -> Option<Integrator> {
-        Self::NAMES.iter().find(|(n, _)| *n == name).map(|&(_, i)| i)
-    }
-
-    /// This integrator's name.
-    pub fn name(self) -> &'static str {
-        Self::NAMES
-            .iter()
-            .find(|(_, i)| *i == self)
-            .map_or("whitted", |(n, _)| n)
-    }
-}
 
 /// Light and colour that belong to the whole scene rather than to an entity.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,52 +24,6 @@ impl Default for Environment {
             background: Vec3::ZERO,
             ambient: Vec3::splat(0.2),
             shadowed_ambient: true,
-        }
-    }
-}
-
-/// Image and quality settings for a render.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RenderSettings {
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// Samples (primary rays) per pixel.
-    pub spp: u32,
-    /// Path length limit. Whitted: the deepest reflection/refraction
-    /// recursion (0 traces camera rays and their shadow rays only). Path:
-    /// Mitsuba's `max_depth`, the longest path in segments counted from the
-    /// camera (1 shows only emitters seen directly, 2 adds direct light, and
-    /// so on); a Whitted depth `d` follows the same chains as a path depth
-    /// `d + 2`.
-    pub max_depth: u32,
-    /// Rays whose accumulated weight falls below this are not traced (S11).
-    pub min_weight: f32,
-    /// Path tracer: Russian roulette may end a path once it has bounced
-    /// this many times (Mitsuba's `rr_depth`; 5 by default). Lower is
-    /// faster and noisier; it adds no bias.
-    pub rr_depth: u32,
-    /// Gouraud or per-pixel Phong.
-    pub shading: Shading,
-    /// Seed of the per-pixel sample streams.
-    pub seed: u64,
-    /// Whitted (the report's model) or path tracing.
-    pub integrator: Integrator,
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        Self {
-            width: 640,
-            height: 360,
-            spp: 1,
-            max_depth: 5,
-            min_weight: 0.01,
-            rr_depth: 5,
-            shading: Shading::Gouraud,
-            seed: 0,
-            integrator: Integrator::Whitted,
         }
     }
 }
@@ -265,14 +159,5 @@ mod tests {
             rig.radius = 9.0;
         }
         assert_eq!(scene.camera().map(|(_, r)| r.radius), Some(9.0));
-    }
-
-    #[test]
-    fn shading_names_round_trip() {
-        for (name, s) in Shading::NAMES {
-            assert_eq!(Shading::from_name(name), Some(s));
-            assert_eq!(s.name(), name);
-        }
-        assert_eq!(Shading::from_name("flat"), None);
     }
 }

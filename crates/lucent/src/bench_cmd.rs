@@ -10,6 +10,8 @@
 use crate::{QualityArgs, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
+use lucent_geom::Named;
+use lucent_render::metrics::median;
 use lucent_render::{ExtractOptions, Integrator, current_threads, extract_with, render, with_threads};
 use lucent_scene::Scene;
 use lucent_scene::components::{MeshRef, Name};
@@ -30,8 +32,6 @@ enum BenchCommand {
     Render(RenderBenchArgs),
     /// Time mesh loading: MB/s, triangles/s and peak memory per file.
     Load(crate::bench_load::LoadBenchArgs),
-    /// Time the traversal core alone on a ray file (the Embree peer's formats).
-    Rays(crate::bench_rays::RaysBenchArgs),
 }
 
 #[derive(Args, Debug)]
@@ -63,7 +63,6 @@ pub fn run(args: BenchArgs) -> Result<()> {
     match args.what {
         BenchCommand::Render(a) => bench_render(a),
         BenchCommand::Load(a) => crate::bench_load::run(a),
-        BenchCommand::Rays(a) => crate::bench_rays::run(a),
     }
 }
 
@@ -78,7 +77,7 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
     };
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
-    let json = with_threads(threads, || -> Result<String> {
+    let json = with_threads(threads, || -> Result<serde_json::Value> {
         let t_build = Instant::now();
         let rs = extract_with(&scene, &options).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
@@ -96,28 +95,26 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
             rays = out.stats.total();
         }
         let median = median(&mut times);
-        Ok(format!(
-            "{{\"scene\":{},\"width\":{},\"height\":{},\"spp\":{},\"shading\":\"{}\",\"threads\":{},\
-\"triangles\":{},\"load_s\":{:.4},\"build_s\":{:.4},\"reps\":{},\"render_s_median\":{:.4},\
-\"render_s_min\":{:.4},\"render_s_max\":{:.4},\"rays\":{},\"mrays_s\":{:.3},\"all_features\":{},\"features\":{}}}",
-            json_str(&name),
-            settings.width,
-            settings.height,
-            settings.spp,
-            settings.shading.name(),
-            current_threads(),
-            rs.n_instanced_triangles(),
-            load_s,
-            build_s,
-            args.reps,
-            median,
-            times.first().copied().unwrap_or(0.0),
-            times.last().copied().unwrap_or(0.0),
-            rays,
-            rays as f64 / 1e6 / median.max(1e-9),
-            args.all_features,
-            serde_json::Value::from(rs.features.names()),
-        ))
+        let round = crate::bench_load::round;
+        Ok(serde_json::json!({
+            "scene": name,
+            "width": settings.width,
+            "height": settings.height,
+            "spp": settings.spp,
+            "shading": settings.shading.name(),
+            "threads": current_threads(),
+            "triangles": rs.n_instanced_triangles(),
+            "load_s": round(load_s, 4),
+            "build_s": round(build_s, 4),
+            "reps": args.reps,
+            "render_s_median": round(median, 4),
+            "render_s_min": round(times.first().copied().unwrap_or(0.0), 4),
+            "render_s_max": round(times.last().copied().unwrap_or(0.0), 4),
+            "rays": rays,
+            "mrays_s": round(rays as f64 / 1e6 / median.max(1e-9), 3),
+            "all_features": args.all_features,
+            "features": rs.features.names(),
+        }))
     })??;
     println!("{json}");
     Ok(())
@@ -140,32 +137,4 @@ fn remove_object(scene: &mut Scene, object: &str) -> Result<()> {
         scene.world.despawn(e)?;
     }
     Ok(())
-}
-
-/// Median of timings (mean of the middle two for even counts; 0 for none).
-/// Sorts `values` in place, so callers may read the extremes afterwards.
-pub(crate) fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    match values.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => values[n / 2],
-        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
-    }
-}
-
-/// `s` as a JSON string literal, quotes and escapes included.
-pub(crate) fn json_str(s: &str) -> String {
-    serde_json::Value::from(s).to_string()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&mut []), 0.0);
-        assert_eq!(median(&mut [9.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 9.0, 1.0, 2.0]), 3.0);
-    }
 }

@@ -117,7 +117,7 @@ fn measure(file: &Path, reps: u32) -> Result<String> {
         times.push(start.elapsed().as_secs_f64());
         drop(loaded);
     }
-    let median = crate::bench_cmd::median(&mut times).max(1e-9);
+    let median = lucent_render::metrics::median(&mut times).max(1e-9);
     let peak = peak_in_child(file)?;
     Ok(serde_json::json!({
         "file": file.display().to_string(),
@@ -171,7 +171,7 @@ fn measure_gltf(file: &Path, reps: u32) -> Result<String> {
         for _ in 0..reps {
             times.push(load_gltf_once(file, skip)?.0);
         }
-        let median = crate::bench_cmd::median(&mut times).max(1e-9);
+        let median = lucent_render::metrics::median(&mut times).max(1e-9);
         out["triangles"] = triangles.into();
         out[key] = serde_json::json!({
             "bytes_read": bytes,
@@ -184,7 +184,8 @@ fn measure_gltf(file: &Path, reps: u32) -> Result<String> {
     Ok(out.to_string())
 }
 
-fn round(x: f64, digits: i32) -> f64 {
+/// `x` rounded to `digits` decimals, for the figures of a JSON line.
+pub(crate) fn round(x: f64, digits: i32) -> f64 {
     let s = 10f64.powi(digits);
     (x * s).round() / s
 }

@@ -10,6 +10,7 @@
 use anyhow::{Result, bail};
 use clap::Args;
 use lucent_assets::{LoadReport, MeshPart, load_mesh, load_scene};
+use lucent_geom::Named;
 use lucent_geom::{Aabb, TriMesh, Vec3};
 use lucent_scene::Scene;
 use lucent_scene::components::{Camera, Light, Material, MaterialRef, Mesh, MeshRef, Parent};

@@ -1,23 +1,26 @@
 //! `lucent`: the Lucent app. With no arguments it opens the interactive
 //! viewer on the built-in seed scene; `lucent render` renders a scene file
-//! to a PNG without a window; `lucent info` describes a file as JSON;
-//! `lucent bench` measures.
+//! to a PNG without a window (or one share of its samples, or a turntable);
+//! `lucent merge` adds a split render's shares into its image; `lucent
+//! info` describes a file as JSON; `lucent bench` measures.
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a command-line program reports on stdout")]
 
 mod bench_cmd;
 mod bench_load;
-mod bench_rays;
 mod builtin;
+mod farm;
 mod info_cmd;
+mod merge_cmd;
 mod render_cmd;
 mod viewer;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand};
 use lucent_assets::LoadReport;
+use lucent_geom::Named;
 use lucent_render::quality::{self, QualityPreset};
-use lucent_render::{ExtractOptions, RenderSettings};
+use lucent_render::{ExtractOptions, RenderOverrides};
 use lucent_scene::{Integrator, Scene, Shading};
 use std::path::Path;
 use std::process::ExitCode;
@@ -26,12 +29,57 @@ use std::process::ExitCode;
 #[command(
     name = "lucent",
     version,
-    about = "A Whitted ray tracer over an ECS scene, with an interactive viewer.",
+    about = "A CPU ray tracer over an ECS scene (the report's Whitted model or a path tracer), with an interactive viewer.",
     after_help = viewer::CONTROLS
 )]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// Print only errors on stderr (no warnings, progress or notes).
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// Print more on stderr: -v adds timings of each step.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+}
+
+/// The `log` backend: one line per message on stderr, `error:` and
+/// `warning:` prefixed like the rest of the app's messages.
+struct Logger;
+
+impl log::Log for Logger {
+    fn enabled(&self, metadata: &log::Metadata) -> bool {
+        metadata.level() <= log::max_level()
+    }
+
+    fn log(&self, record: &log::Record) {
+        if self.enabled(record.metadata()) {
+            let prefix = match record.level() {
+                log::Level::Error => "error: ",
+                log::Level::Warn => "warning: ",
+                log::Level::Info => "",
+                log::Level::Debug | log::Level::Trace => "note: ",
+            };
+            eprintln!("{prefix}{}", record.args());
+        }
+    }
+
+    fn flush(&self) {}
+}
+
+/// Errors only with `-q`; errors, warnings and notes by default; step
+/// timings with `-v`.
+fn init_logging(quiet: bool, verbose: u8) {
+    static LOGGER: Logger = Logger;
+    let level = match (quiet, verbose) {
+        (true, _) => log::LevelFilter::Error,
+        (false, 0) => log::LevelFilter::Info,
+        (false, 1) => log::LevelFilter::Debug,
+        (false, _) => log::LevelFilter::Trace,
+    };
+    // Fails only if a logger is already set (never here): keep that one.
+    let _ = log::set_logger(&LOGGER);
+    log::set_max_level(level);
 }
 
 #[derive(Subcommand)]
@@ -44,6 +92,9 @@ enum Command {
     Bench(bench_cmd::BenchArgs),
     /// Describe a mesh (.obj, .ply), scene (.toml) or glTF (.gltf, .glb) file as JSON.
     Info(info_cmd::InfoArgs),
+    /// Merge the partial files of a split render (`render --part K/N
+    /// --partial FILE`) into the image one `render` makes, byte for byte.
+    Merge(merge_cmd::MergeArgs),
 }
 
 /// Settings shared by `view`, `render` and `bench render`, overriding the
@@ -69,26 +120,14 @@ struct QualityArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
     rr_depth: Option<u32>,
     /// Evaluate lighting at the vertices (gouraud) or per pixel (phong).
-    #[arg(long, value_enum)]
-    shading: Option<ShadingArg>,
+    #[arg(long, value_name = "NAME", value_parser = named::<Shading>())]
+    shading: Option<Shading>,
     /// Seed of the per-pixel sample streams.
     #[arg(long)]
     seed: Option<u64>,
     /// Light transport: the report's Whitted model or path tracing.
-    #[arg(long, value_enum)]
-    integrator: Option<IntegratorArg>,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum IntegratorArg {
-    Whitted,
-    Path,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum ShadingArg {
-    Gouraud,
-    Phong,
+    #[arg(long, value_name = "NAME", value_parser = named::<Integrator>())]
+    integrator: Option<Integrator>,
 }
 
 impl QualityArgs {
@@ -97,7 +136,7 @@ impl QualityArgs {
         if let Some(p) = self.preset {
             p.apply(&mut scene.settings);
         }
-        self.apply_flags(&mut scene.settings);
+        self.overrides().apply(&mut scene.settings);
     }
 
     /// How `extract_with` should build the scene: the preset's options, or
@@ -107,36 +146,28 @@ impl QualityArgs {
             .map_or_else(ExtractOptions::default, |p| p.extract_options())
     }
 
-    /// Applies the explicit flags only (not the preset).
-    fn apply_flags(&self, s: &mut RenderSettings) {
-        if let Some((w, h)) = self.size {
-            (s.width, s.height) = (w, h);
-        }
-        if let Some(d) = self.max_depth {
-            s.max_depth = d;
-        }
-        if let Some(w) = self.min_weight {
-            s.min_weight = w;
-        }
-        if let Some(d) = self.rr_depth {
-            s.rr_depth = d;
-        }
-        if let Some(sh) = self.shading {
-            s.shading = match sh {
-                ShadingArg::Gouraud => Shading::Gouraud,
-                ShadingArg::Phong => Shading::Phong,
-            };
-        }
-        if let Some(seed) = self.seed {
-            s.seed = seed;
-        }
-        if let Some(i) = self.integrator {
-            s.integrator = match i {
-                IntegratorArg::Whitted => Integrator::Whitted,
-                IntegratorArg::Path => Integrator::Path,
-            };
+    /// The explicit flags only (not the preset).
+    fn overrides(&self) -> RenderOverrides {
+        RenderOverrides {
+            width: self.size.map(|(w, _)| w),
+            height: self.size.map(|(_, h)| h),
+            max_depth: self.max_depth,
+            min_weight: self.min_weight,
+            rr_depth: self.rr_depth,
+            shading: self.shading,
+            seed: self.seed,
+            integrator: self.integrator,
+            ..RenderOverrides::NONE
         }
     }
+}
+
+/// A flag whose values are a [`Named`] enum's names (listed in `--help`
+/// and in the error for any other value).
+fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(T::NAMES.iter().map(|&(n, _)| n))
+        .try_map(|name| T::from_name(&name).ok_or_else(|| format!("expected {}", T::name_list())))
 }
 
 /// `--help` for `--preset`: every preset with its one-line description.
@@ -180,6 +211,7 @@ fn prepare_scene(path: Option<&Path>, quality: &QualityArgs, spp: Option<u32>) -
     let start = std::time::Instant::now();
     let (mut scene, _report, name) = load_scene(path)?;
     let load_s = start.elapsed().as_secs_f64();
+    log::debug!("{name}: loaded in {load_s:.3} s");
     quality.apply(&mut scene);
     if let Some(spp) = spp {
         scene.settings.spp = spp;
@@ -201,7 +233,7 @@ fn load_scene(path: Option<&Path>) -> Result<(Scene, LoadReport, String)> {
         }
     };
     for w in &report.warnings {
-        eprintln!("warning: {w}");
+        log::warn!("{w}");
     }
     Ok((scene, report, name))
 }
@@ -213,22 +245,24 @@ fn run(cli: Cli) -> Result<()> {
         Some(Command::Render(args)) => render_cmd::run(args),
         Some(Command::Bench(args)) => bench_cmd::run(args),
         Some(Command::Info(args)) => info_cmd::run(args),
+        Some(Command::Merge(args)) => merge_cmd::run(args),
     }
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_logging(cli.quiet, cli.verbose);
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // One line: the error and its causes.
-            eprintln!("error: {e:#}");
+            log::error!("{e:#}");
             ExitCode::FAILURE
         }
     }
 }
 
-/// The output path must be a PNG file.
+/// The output path must be a PNG file that can be written.
 fn check_png_path(path: &Path) -> Result<()> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if ext.as_deref() != Some("png") {
@@ -236,6 +270,22 @@ fn check_png_path(path: &Path) -> Result<()> {
             "{}: only PNG output is supported (use a .png file name)",
             path.display()
         );
+    }
+    check_writable(path)
+}
+
+/// Fails now, not after a long render, when `path` cannot be written (a
+/// missing directory, no permission). Leaves an existing file as it is and
+/// removes the empty file it made to find out.
+fn check_writable(path: &Path) -> Result<()> {
+    let existed = path.exists();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .with_context(|| format!("{}: cannot write the output here", path.display()))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
     }
     Ok(())
 }

@@ -3,8 +3,8 @@
 
 use super::*;
 use clap::error::ErrorKind;
-use lucent_render::BuildQuality;
 use lucent_render::quality::PRESETS;
+use lucent_render::{BuildQuality, RenderSettings};
 
 fn parse(args: &[&str]) -> Result<Cli, clap::Error> {
     Cli::try_parse_from(std::iter::once("lucent").chain(args.iter().copied()))
@@ -34,7 +34,8 @@ fn render_view_and_bench_take_every_preset_by_name() {
             matches!(
                 bench,
                 Ok(Cli {
-                    command: Some(Command::Bench(_))
+                    command: Some(Command::Bench(_)),
+                    ..
                 })
             ),
             "{}",
@@ -99,8 +100,12 @@ fn explicit_flags_override_the_preset() {
         let s = scene(&quality_of(&args));
         assert_eq!((s.width, s.height, s.max_depth), (100, 50, 7), "{args:?}");
         assert_eq!(
-            (s.spp, s.shading, s.integrator),
-            (preview.spp, preview.shading, preview.integrator)
+            (Some(s.spp), Some(s.shading), Some(s.integrator)),
+            (
+                preview.settings.spp,
+                preview.settings.shading,
+                preview.settings.integrator
+            )
         );
     }
     let s = scene(&quality_of(&[
@@ -122,7 +127,10 @@ fn explicit_flags_override_the_preset() {
         (s.integrator, s.shading, s.rr_depth, s.min_weight, s.seed),
         (Integrator::Whitted, Shading::Gouraud, 3, 0.5, 4)
     );
-    assert_eq!((s.spp, s.max_depth), (PRESETS[3].spp, PRESETS[3].max_depth));
+    assert_eq!(
+        (Some(s.spp), Some(s.max_depth)),
+        (PRESETS[3].settings.spp, PRESETS[3].settings.max_depth)
+    );
     // No preset: the scene's own settings under the flags.
     let s = scene(&quality_of(&["view", "--max-depth", "2"]));
     assert_eq!((s.width, s.height, s.max_depth, s.spp), (640, 360, 2, 1));
@@ -132,7 +140,7 @@ fn explicit_flags_override_the_preset() {
 fn spp_flag_overrides_the_preset_and_the_build_quality_follows_it() {
     let q = quality_of(&["render", "s.toml", "-o", "x.png", "--preset", "final"]);
     let (scene, _, _) = prepare_scene(None, &q, None).unwrap();
-    assert_eq!(scene.settings.spp, PRESETS[2].spp);
+    assert_eq!(Some(scene.settings.spp), PRESETS[2].settings.spp);
     let (scene, _, _) = prepare_scene(None, &q, Some(3)).unwrap();
     assert_eq!(scene.settings.spp, 3);
     assert_eq!(q.extract_options().bvh_quality, PRESETS[2].bvh_quality);

@@ -1,9 +1,10 @@
 //! `lucent render`: headless rendering to a PNG and/or a linear EXR file.
 
-use crate::{QualityArgs, check_png_path, prepare_scene};
+use crate::{QualityArgs, check_png_path, check_writable, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lucent_geom::Named;
 use lucent_render::{
     Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render, with_threads,
 };
@@ -17,21 +18,22 @@ const MAX_SPP: u32 = 65536;
 /// Arguments of `lucent render`.
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Scene (.toml) or model (.gltf, .glb, .obj, .ply) file; a model gets a
-    /// camera, lighting and the path tracer around it.
-    scene: PathBuf,
+    /// Scene (.toml) or model (.gltf, .glb, .obj, .ply) file, the built-in
+    /// seed scene when omitted; a model gets a camera, lighting and the path
+    /// tracer around it.
+    pub(crate) scene: Option<PathBuf>,
     /// Output PNG file: radiance times 2^exposure, clamped to [0, 1], sRGB, 8 bits.
-    #[arg(short, long, value_name = "FILE.png", required_unless_present = "exr")]
-    output: Option<PathBuf>,
+    #[arg(short, long, value_name = "FILE.png", required_unless_present_any = ["exr", "partial"])]
+    pub(crate) output: Option<PathBuf>,
     /// Output linear EXR file (32-bit float radiance, no exposure, no clamp).
     #[arg(long, value_name = "FILE.exr")]
-    exr: Option<PathBuf>,
+    pub(crate) exr: Option<PathBuf>,
     /// Exposure of the PNG in stops (EV): radiance is scaled by 2^EV first.
     #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_ev)]
-    exposure: f32,
+    pub(crate) exposure: f32,
     /// Samples per pixel (1 to 65536).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=65536))]
-    spp: Option<u32>,
+    pub(crate) spp: Option<u32>,
     /// Refine until this much wall time is spent (after loading and the BVH),
     /// e.g. 2s, 1.5s, 500ms; --spp caps the samples (default 65536).
     #[arg(long, value_name = "TIME", value_parser = parse_budget, conflicts_with = "target_error")]
@@ -42,9 +44,11 @@ pub struct RenderArgs {
     target_error: Option<f64>,
     /// Worker threads (default: one per CPU).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
-    threads: Option<u16>,
+    pub(crate) threads: Option<u16>,
     #[command(flatten)]
     pub(crate) quality: QualityArgs,
+    #[command(flatten)]
+    pub(crate) farm: crate::farm::FarmArgs,
 }
 
 /// A duration such as `2s`, `1.5s` or `500ms`, from 1 ms to 24 hours.
@@ -81,6 +85,9 @@ fn parse_ev(s: &str) -> Result<f32, String> {
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
+    if let Some(frames) = args.farm.turntable {
+        return crate::farm::run_turntable(&args, frames);
+    }
     if let Some(png) = &args.output {
         check_png_path(png)?;
     }
@@ -89,28 +96,35 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if ext.as_deref() != Some("exr") {
             bail!("{}: the --exr file name must end in .exr", exr.display());
         }
+        check_writable(exr)?;
     }
-    let (mut scene, _name, load_s) = prepare_scene(Some(&args.scene), &args.quality, args.spp)?;
+    let (mut scene, name, load_s) = prepare_scene(args.scene.as_deref(), &args.quality, args.spp)?;
     if args.time_budget.is_some() || args.target_error.is_some() {
         // --spp is the cap here, not the scene's spp.
         scene.settings.spp = args.spp.unwrap_or(MAX_SPP);
+    }
+    if let Some(share) = args.farm.part {
+        crate::farm::check_part(share, &scene.settings)?;
     }
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
     let (rs, build_s, out, n_threads, refined) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
-        let rs = extract_with(&scene, &args.quality.extract_options())
-            .with_context(|| format!("{}", args.scene.display()))?;
+        let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
             // The path tracer's one-level tree is built on demand; build it
             // here so it counts as BVH time, not render time.
             let _ = rs.flat_bvh();
         }
         let build_s = t_build.elapsed().as_secs_f64();
+        log::debug!("BVH built in {build_s:.3} s");
         let bar = ProgressBar::new(settings.height as u64).with_style(
             ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
+        if !log::log_enabled!(log::Level::Info) {
+            bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+        }
         let (out, refined) = render_mode(&rs, &settings, &args, &bar);
         bar.finish_and_clear();
         Ok((rs, build_s, out, current_threads(), refined))
@@ -122,9 +136,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(exr) = &args.exr {
         lucent_assets::save_exr(exr, w, h, &out.film.to_linear_rgb())?;
     }
+    if let (Some(share), Some(path)) = (args.farm.part, &args.farm.partial) {
+        let options = args.quality.extract_options();
+        crate::farm::save_partial(path, args.scene.as_deref(), share, &settings, &options, &out.film)?;
+    }
     let secs = out.elapsed.as_secs_f64();
     let rays = out.stats.total();
-    let outputs: Vec<String> = [&args.output, &args.exr]
+    let outputs: Vec<String> = [&args.output, &args.exr, &args.farm.partial]
         .into_iter()
         .flatten()
         .map(|p| p.display().to_string())
@@ -174,6 +192,18 @@ fn render_mode(
     args: &RenderArgs,
     bar: &ProgressBar,
 ) -> (RenderOutput, Option<String>) {
+    if let Some(share) = args.farm.part {
+        let out = lucent_render::partial::render_share(rs, settings, share, &|rows| bar.set_position(rows as u64));
+        let r = share.samples(settings.spp);
+        let refined = format!(
+            "share {share}: samples {}..{} of {} spp, {:.3} s/spp",
+            r.start,
+            r.end,
+            settings.spp,
+            out.elapsed.as_secs_f64() / r.len().max(1) as f64
+        );
+        return (out, Some(refined));
+    }
     if let Some(budget) = args.time_budget {
         bar.set_style(
             ProgressStyle::with_template("{spinner} rendering for {msg}, {elapsed}")

@@ -270,3 +270,70 @@ fn bench_render_measures_the_specialised_and_the_all_features_renderer() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("no object named 'teapot'"), "{err}");
 }
+
+#[test]
+fn an_unwritable_output_fails_before_rendering() {
+    let dir = scratch("cli", "unwritable");
+    for flag in ["-o", "--exr"] {
+        let ext = if flag == "-o" { "png" } else { "exr" };
+        let target = dir.join(format!("no/such/dir/x.{ext}"));
+        let out = lucent().arg("render").arg(flag).arg(&target).output().unwrap();
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(
+            err.starts_with(&format!("error: {}: cannot write the output here", target.display())),
+            "{err}"
+        );
+        assert!(out.stdout.is_empty(), "nothing rendered");
+    }
+    // A writable path is left as it was found: no empty file behind.
+    let out = lucent()
+        .args(["render", "--size", "0x1", "-o"])
+        .arg(dir.join("x.png"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.join("x.png").exists());
+}
+
+#[test]
+fn render_takes_the_built_in_scene_and_quiet_and_verbose_flags() {
+    let dir = scratch("cli", "builtin");
+    let png = dir.join("seed.png");
+    let render = |extra: &[&str]| {
+        lucent()
+            .args(["render", "--size", "32x18", "--spp", "1", "-o"])
+            .arg(&png)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = render(&[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("32x18, 1 spp"));
+    assert!(png.exists());
+    let verbose = render(&["-v"]);
+    let err = stderr(&verbose);
+    assert!(err.contains("note: built-in seed scene: loaded in"), "{err}");
+    // A mesh whose MTL file is missing loads with a warning (magenta).
+    let obj = "mtllib nowhere.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, "[[objects]]\nmesh = \"m.obj\"\n").unwrap();
+    let with_scene = |flag: &str| {
+        let mut cmd = lucent();
+        cmd.arg("render").arg(&scene).args(["--size", "8x8", "-o"]).arg(&png);
+        if !flag.is_empty() {
+            cmd.arg(flag);
+        }
+        cmd.output().unwrap()
+    };
+    let out = with_scene("");
+    assert!(
+        out.status.success() && stderr(&out).starts_with("warning: "),
+        "{}",
+        stderr(&out)
+    );
+    let out = with_scene("-q");
+    assert!(out.status.success() && stderr(&out).is_empty(), "{}", stderr(&out));
+}

@@ -43,7 +43,11 @@ fn explicit_flags_win_over_the_preset() {
     assert!(summary.contains("48x27, 2 spp, path max_depth 3"), "{summary}");
     // Without the flags the final preset path traces with its own depth.
     let (summary, _) = render("final-depth", &["--preset", "final", "--size", "16x9", "--spp", "1"]);
-    let depth = lucent_render::quality::preset("final").unwrap().max_depth;
+    let depth = lucent_render::quality::preset("final")
+        .unwrap()
+        .settings
+        .max_depth
+        .unwrap();
     assert!(summary.contains(&format!("path max_depth {depth}")), "{summary}");
 }
 

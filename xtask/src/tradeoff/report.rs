@@ -35,22 +35,22 @@ pub struct PresetResult {
     pub flip: f64,
 }
 
-pub(crate) use crate::median;
+pub(crate) use lucent_render::metrics::median;
 
 impl PresetResult {
     /// Median of extract + render.
     pub fn time(&self) -> f64 {
-        median(&self.runs.iter().map(Timing::total).collect::<Vec<_>>())
+        median(&mut self.runs.iter().map(Timing::total).collect::<Vec<_>>())
     }
 
     /// Median extract time.
     pub fn extract_time(&self) -> f64 {
-        median(&self.runs.iter().map(|t| t.extract_s).collect::<Vec<_>>())
+        median(&mut self.runs.iter().map(|t| t.extract_s).collect::<Vec<_>>())
     }
 
     /// Median render time.
     pub fn render_time(&self) -> f64 {
-        median(&self.runs.iter().map(|t| t.render_s).collect::<Vec<_>>())
+        median(&mut self.runs.iter().map(|t| t.render_s).collect::<Vec<_>>())
     }
 
     /// Fastest and slowest run (extract + render).
@@ -360,9 +360,9 @@ pub(crate) mod tests {
 
     #[test]
     fn medians_and_spread() {
-        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
-        assert!(median(&[]).is_nan());
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!(median(&mut []).is_nan());
         let p = preset("p", &[2.0, 1.0, 4.0], 0.1, 0.2);
         assert!((p.time() - 2.0).abs() < 1e-12);
         assert!((p.extract_time() - 0.2).abs() < 1e-12 && (p.render_time() - 1.8).abs() < 1e-12);

@@ -75,8 +75,8 @@ fn data_uri() -> String {
 
 fn load_text(text: String) -> Result<(Scene, LoadReport), String> {
     let src = MemorySource::new()
-        .with_file("m/t.gltf", Box::leak(text.into_bytes().into_boxed_slice()))
-        .with_file("m/t.bin", Box::leak(triangle_bytes().into_boxed_slice()));
+        .with_file("m/t.gltf", text.into_bytes())
+        .with_file("m/t.bin", triangle_bytes());
     crate::load_scene_from(&src, Path::new("m/t.gltf")).map_err(|e| e.to_string())
 }
 

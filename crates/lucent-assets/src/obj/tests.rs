@@ -9,14 +9,14 @@ const QUAD_OBJ: &[u8] = b"mtllib q.mtl\r\nv 0 0 0\r\nv 1 0 0\nv 1 1 0\nv 0 1 0\n
 usemtl shiny\nf 1/1 2/2 3/3 4/4\n";
 const QUAD_MTL: &[u8] = b"newmtl shiny\nKa 0.1 0.1 0.1  # comment\nKd 0.5 0.25 0\nKs 0.9 0.9 0.9\nNs 50\nillum 3\nd 0.75\nNi 1.33\nKe 2 3 4\nPr 0.4\nmap_Kd -s 2 2 1 -o 0.5 0 -clamp on -bm 0.3 tex.png\n";
 
-fn load(files: &[(&str, &'static [u8])], path: &str) -> Result<(Vec<MeshPart>, LoadReport), String> {
-    let src = files
-        .iter()
-        .fold(MemorySource::new(), |s, (name, bytes)| s.with_file(name, bytes));
+fn load(files: &[(&str, &[u8])], path: &str) -> Result<(Vec<MeshPart>, LoadReport), String> {
+    let src = files.iter().fold(MemorySource::new(), |s, (name, bytes)| {
+        s.with_file(name, bytes.to_vec())
+    });
     load_mesh_from(&src, Path::new(path)).map_err(|e| e.to_string())
 }
 
-fn parse_err(text: &'static [u8]) -> Result<(), String> {
+fn parse_err(text: &[u8]) -> Result<(), String> {
     load(&[("t.obj", text)], "t.obj").map(|_| ())
 }
 
@@ -172,6 +172,59 @@ fn non_numeric_fields_name_the_line() {
 }
 
 #[test]
+fn msvc_and_other_non_finite_spellings_reject_the_vertex() {
+    // Two triangles over four vertices; the third vertex is not finite.
+    for word in [
+        "1.#IND",
+        "-1.#IND",
+        "1.#QNAN",
+        "-1.#QNAN",
+        "1.#INF",
+        "-1.#INF",
+        "1.#INF00",
+        "-1.#IND00",
+        "1.#SNAN",
+        "1.#INF00e+000",
+        "nan",
+        "NaN",
+        "-inf",
+        "INF",
+        "Infinity",
+        "-INFINITY",
+    ] {
+        let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\nf 1 2 4\n");
+        let (parts, report) = load(&[("t.obj", &text.into_bytes())], "t.obj").unwrap_or_default();
+        let m = parts.first().map(|p| &p.mesh);
+        assert_eq!(
+            m.map(|m| (m.positions().len(), m.n_triangles())),
+            Some((4, 3)),
+            "{word}"
+        );
+        assert!(
+            m.is_some_and(|m| m.positions()[2].is_nan()),
+            "{word}: the vertex is rejected"
+        );
+        assert_eq!(
+            report.warnings,
+            [
+                "t.obj: rejected 1 vertices with NaN or infinite coordinates and the 2 triangles that use them \
+              (they keep their numbers but are never drawn)"
+            ],
+            "{word}"
+        );
+    }
+    // (A word that starts with `#`, such as `#IND`, starts a comment.)
+    for word in ["3.1+e2", "1.2.3", "1.#INFX", "1.#", "1.#NAN", "1.#INF01"] {
+        let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nf 1 2 3\n");
+        assert_eq!(
+            parse_err(&text.into_bytes()),
+            Err(format!("t.obj:3: '{word}' is not a number")),
+            "{word}"
+        );
+    }
+}
+
+#[test]
 fn vertex_colours_and_attributes_only_when_given() {
     let (parts, _) = load(
         &[(
@@ -194,8 +247,8 @@ fn vertex_colours_and_attributes_only_when_given() {
 const ROOF: &str = "v 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 0 -1\nv 1 0 -1\n";
 
 fn roof(statements: &str) -> Vec<MeshPart> {
-    let text = format!("{ROOF}{statements}").into_bytes().leak();
-    load(&[("r.obj", text)], "r.obj").map(|(p, _)| p).unwrap_or_default()
+    let text = format!("{ROOF}{statements}").into_bytes();
+    load(&[("r.obj", &text)], "r.obj").map(|(p, _)| p).unwrap_or_default()
 }
 
 #[test]
@@ -253,13 +306,9 @@ fn groups_and_materials_split_parts_and_missing_ones_are_magenta() {
 fn pbr_extension_fields_make_a_metallic_roughness_material() {
     // A 1x1 texel of 128 read as linear data (normal and roughness maps)
     // is 128/255, as sRGB colour (map_Kd, map_Ke) about 0.216.
-    let png: &'static [u8] = Box::leak(
-        crate::encode_png(1, 1, &[128, 128, 128])
-            .unwrap_or_default()
-            .into_boxed_slice(),
-    );
+    let png = crate::encode_png(1, 1, &[128, 128, 128]).unwrap_or_default();
     let mtl: &[u8] = b"newmtl shiny\nKd 0.5 0.25 0\nPm 0.75\nPr 0.4\nd 0.9\nmap_Kd t.png\nnorm -bm 2 t.png\nmap_Pr t.png\nmap_Ke t.png\n";
-    let (parts, report) = load(&[("q.obj", QUAD_OBJ), ("q.mtl", mtl), ("t.png", png)], "q.obj").unwrap_or_default();
+    let (parts, report) = load(&[("q.obj", QUAD_OBJ), ("q.mtl", mtl), ("t.png", &png)], "q.obj").unwrap_or_default();
     let m = parts[0].material.as_ref().expect("material");
     let pbr = m.pbr.as_ref().expect("Pm makes it metallic-roughness");
     assert_eq!(

@@ -1,6 +1,7 @@
 //! Tests of scene-file parsing and its error locations.
 
 use super::*;
+use crate::Shading;
 
 fn parse(text: &str) -> Result<SceneFile, SceneFileError> {
     SceneFile::parse(Path::new("scenes/test.toml"), text)
@@ -147,7 +148,7 @@ fn unknown_keys_and_bad_values_are_located() {
     );
     assert_eq!(
         check_err("[render]\nshading = \"flat\"\n"),
-        "2:11: unknown variant `flat`, expected `gouraud` or `phong`"
+        "2:11: unknown name `flat`, expected gouraud or phong"
     );
     assert_eq!(
         check_err("[materials.a]\nkd = [1, -1, 0]\n"),

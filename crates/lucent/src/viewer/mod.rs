@@ -19,8 +19,9 @@ use crate::{QualityArgs, check_png_path, load_scene};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use input::{FrameInput, ScriptedInput, WindowInput};
+use lucent_geom::Named;
 use lucent_nav::{Buttons, HeldKeys, OrbitController};
-use lucent_render::{RenderSettings, extract_with};
+use lucent_render::{RenderOverrides, RenderSettings, extract_with};
 use lucent_scene::components::OrbitRig;
 use lucent_scene::{Integrator, Shading};
 use minifb::{Window, WindowOptions};
@@ -124,7 +125,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     let (mut scene, _report, name) = load_scene(args.scene.as_deref())?;
     // The window keeps the scene's size (or --size); a preset's resolution
     // scale applies to the still image inside it, so only the flags here.
-    args.quality.apply_flags(&mut scene.settings);
+    args.quality.overrides().apply(&mut scene.settings);
     // The BVH is built once, with the starting preset's build effort.
     let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
     let (w, h) = (scene.settings.width, scene.settings.height);
@@ -172,7 +173,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     } = app;
     drop(worker);
     if let Source::Script(script, _) = &source {
-        eprintln!(
+        log::info!(
             "soak: {} random inputs over {:.1} s, {} frames displayed, camera finite throughout",
             script.n_inputs,
             start.elapsed().as_secs_f32(),
@@ -290,7 +291,7 @@ struct ViewState {
     /// Settings at window size (`width` x `height` is the window).
     settings: RenderSettings,
     /// Explicit command-line settings, applied over every preset.
-    flags: QualityArgs,
+    flags: RenderOverrides,
     /// Index into [`PRESETS`]; `None`: the scene's own settings.
     preset: Option<usize>,
     max_spp: Option<u32>,
@@ -308,7 +309,7 @@ impl ViewState {
             controller: OrbitController::new(rig),
             rig,
             settings,
-            flags: args.quality.clone(),
+            flags: args.quality.overrides(),
             preset: start_preset(args),
             max_spp: args.max_spp,
             target_fps: args.target_fps,
@@ -327,10 +328,8 @@ impl ViewState {
     /// roulette (the window keeps its size), then the explicit flags.
     fn apply_preset(&mut self, preset: usize) {
         self.preset = Some(preset);
-        let (width, height) = (self.settings.width, self.settings.height);
-        PRESETS[preset].apply(&mut self.settings);
-        (self.settings.width, self.settings.height) = (width, height);
-        self.flags.apply_flags(&mut self.settings);
+        PRESETS[preset].settings.apply(&mut self.settings);
+        self.flags.apply(&mut self.settings);
     }
 
     /// Applies one frame of input; returns whether the request changed.
@@ -469,7 +468,7 @@ impl Shown {
             view.preset_name(),
             match view.settings.integrator {
                 Integrator::Whitted => view.settings.shading.name(),
-                Integrator::Path => "path",
+                other => other.name(),
             },
         )
     }
@@ -480,7 +479,7 @@ fn rig_is_finite(r: &OrbitRig) -> bool {
 }
 
 fn render_hint() -> &'static str {
-    "lucent render res/scenes/seed.toml -o seed.png"
+    "lucent render -o seed.png"
 }
 
 /// Fails early, with a pointer to headless rendering, when there is no
@@ -516,14 +515,14 @@ fn save(pixels: &[u32], width: u32, height: u32, path: &Path) -> Result<()> {
 /// window; reports the outcome on stderr.
 fn save_in_background(pixels: Vec<u32>, width: u32, height: u32, path: PathBuf) {
     let job = move || match save(&pixels, width, height, &path) {
-        Ok(()) => eprintln!("saved {}", path.display()),
-        Err(e) => eprintln!("error: {e:#}"),
+        Ok(()) => log::info!("saved {}", path.display()),
+        Err(e) => log::error!("{e:#}"),
     };
     if let Err(e) = std::thread::Builder::new()
         .name("lucent-screenshot".to_owned())
         .spawn(job)
     {
-        eprintln!("error: cannot save a screenshot: {e}");
+        log::error!("cannot save a screenshot: {e}");
     }
 }
 

@@ -85,7 +85,12 @@ mod tests {
         for (pair, motion) in PRESETS.windows(2).zip(MOTION.windows(2)) {
             assert!(motion[0].target_fps > motion[1].target_fps, "{motion:?}");
             assert!(motion[0].max_scale >= motion[1].max_scale, "{motion:?}");
-            assert!(pair[0].spp < pair[1].spp, "{} {}", pair[0].name, pair[1].name);
+            assert!(
+                pair[0].settings.spp < pair[1].settings.spp,
+                "{} {}",
+                pair[0].name,
+                pair[1].name
+            );
         }
         assert!(
             MOTION

@@ -3,7 +3,6 @@
 //! bar, plus the smoothed frame clock both use.
 
 use super::worker::Frame;
-use std::fmt::Write as _;
 
 /// One displayed frame, as `--stats` prints it.
 pub struct FrameReport<'a> {
@@ -28,54 +27,30 @@ pub struct FrameReport<'a> {
 }
 
 impl FrameReport<'_> {
-    /// One JSON object on one line. Non-finite numbers (which the rig's
-    /// sanitising rules out) would print as `null`, never as invalid JSON.
+    /// One JSON object on one line, through serde_json: non-finite
+    /// numbers (which the rig's sanitising rules out) print as `null`.
     pub fn json(&self) -> String {
         let f = self.frame;
         let r = &f.rig;
-        let num = |x: f64| {
-            if x.is_finite() {
-                format!("{x:.6}")
-            } else {
-                "null".to_owned()
-            }
-        };
-        // The radius spans 1e-9 to 1e7: all its digits, not six decimals
-        // (which printed the smallest radii as 0).
-        let radius = if r.radius.is_finite() {
-            format!("{:e}", r.radius)
-        } else {
-            "null".to_owned()
-        };
-        let mut s = String::with_capacity(320);
-        let _ = write!(
-            s,
-            "{{\"frame\":{},\"t_s\":{},\"frame_ms\":{},\"render_ms\":{},\"output_ms\":{},\"width\":{},\"height\":{},\"scale\":{},\
-\"samples\":{},\"refined\":{},\"moving\":{},\"since_change_ms\":{},\"generation\":{},\"preset\":\"{}\",\
-\"shading\":\"{}\",\"camera\":{{\"R\":{},\"theta\":{},\"phi\":{},\"O\":[{},{},{}]}}}}",
-            self.index,
-            num(self.t_s),
-            num(f64::from(self.frame_s) * 1e3),
-            num(f64::from(f.render_s) * 1e3),
-            num(f64::from(f.output_s) * 1e3),
-            f.width,
-            f.height,
-            num(f64::from(f.scale(self.window_width))),
-            f.samples,
-            f.refined,
-            self.moving,
-            num(f64::from(self.since_change_s) * 1e3),
-            f.generation,
-            self.preset,
-            self.shading,
-            radius,
-            num(f64::from(r.theta)),
-            num(f64::from(r.phi)),
-            num(f64::from(r.center.x)),
-            num(f64::from(r.center.y)),
-            num(f64::from(r.center.z)),
-        );
-        s
+        serde_json::json!({
+            "frame": self.index,
+            "t_s": self.t_s,
+            "frame_ms": f64::from(self.frame_s) * 1e3,
+            "render_ms": f64::from(f.render_s) * 1e3,
+            "output_ms": f64::from(f.output_s) * 1e3,
+            "width": f.width,
+            "height": f.height,
+            "scale": f.scale(self.window_width),
+            "samples": f.samples,
+            "refined": f.refined,
+            "moving": self.moving,
+            "since_change_ms": f64::from(self.since_change_s) * 1e3,
+            "generation": f.generation,
+            "preset": self.preset,
+            "shading": self.shading,
+            "camera": { "R": r.radius, "theta": r.theta, "phi": r.phi, "O": r.center.to_array() },
+        })
+        .to_string()
     }
 }
 
@@ -142,18 +117,24 @@ mod tests {
             shading: "gouraud",
         };
         let line = report.json();
-        assert!(!line.contains('\n') && !line.contains("NaN") && line.contains("\"frame_ms\":null"));
-        for field in [
-            "\"frame\":3,",
-            "\"render_ms\":20.000000,\"output_ms\":1.000000,",
-            "\"width\":320,\"height\":180,\"scale\":2.000000,",
-            "\"samples\":1,\"refined\":false,\"moving\":true,",
-            "\"generation\":7,",
-            "\"camera\":{\"R\":3e0,\"theta\":0.250000,\"phi\":1.500000,\"O\":[1.000000,-2.000000,0.500000]}}",
-        ] {
-            assert!(line.contains(field), "{field} in {line}");
+        assert!(!line.contains('\n') && !line.contains("NaN"), "{line}");
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line}"));
+        assert_eq!(v["frame_ms"], serde_json::Value::Null);
+        let want = serde_json::json!({
+            "frame": 3, "t_s": 1.5, "frame_ms": null, "width": 320, "height": 180, "scale": 2.0,
+            "samples": 1, "refined": false, "moving": true, "generation": 7,
+            "preset": "interactive", "shading": "gouraud",
+            "camera": { "R": 3.0, "theta": 0.25, "phi": 1.5, "O": [1.0, -2.0, 0.5] },
+        });
+        for (key, value) in want.as_object().into_iter().flatten() {
+            assert_eq!(&v[key], value, "{key} in {line}");
         }
-        assert_eq!(line.matches('{').count(), line.matches('}').count());
+        for (key, ms) in [("render_ms", 20.0), ("output_ms", 1.0), ("since_change_ms", 4.0)] {
+            assert!(
+                v[key].as_f64().is_some_and(|x| (x - ms).abs() < 1e-3),
+                "{key} in {line}"
+            );
+        }
     }
 
     #[test]

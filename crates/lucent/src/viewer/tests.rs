@@ -6,6 +6,13 @@ use super::*;
 use lucent_geom::Vec2;
 use lucent_nav::{Buttons, NavInput};
 
+/// What preset `i` sets, on the default settings.
+fn preset_settings(i: usize) -> RenderSettings {
+    let mut s = RenderSettings::default();
+    PRESETS[i].settings.apply(&mut s);
+    s
+}
+
 fn view(args: &ViewArgs, now: Instant) -> ViewState {
     let settings = RenderSettings {
         max_depth: 5,
@@ -92,7 +99,7 @@ fn presets_and_shading_restart_accumulation_without_moving() {
         preset: Some(p),
         ..FrameInput::default()
     };
-    let interactive = &PRESETS[1];
+    let interactive = preset_settings(1);
     assert!(v.apply(&pick(1), t0));
     let r = v.request();
     assert_eq!((r.generation, r.max_spp), (g + 1, interactive.spp));
@@ -105,7 +112,7 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     assert!(!v.apply(&pick(1), t0));
     // The preview preset: its samples, depth and shading, its resolution
     // scale for the still image, the window's size unchanged.
-    let preview = &PRESETS[0];
+    let preview = preset_settings(0);
     assert!(v.apply(&pick(0), t0));
     let r = v.request();
     assert!(!r.moving && r.generation == g + 2);
@@ -115,7 +122,7 @@ fn presets_and_shading_restart_accumulation_without_moving() {
         (Shading::Gouraud, preview.min_weight)
     );
     assert_eq!((r.settings.width, r.settings.height), (640, 360));
-    assert!((r.still_scale * preview.resolution_scale - 1.0).abs() < 1e-6);
+    assert!((r.still_scale * PRESETS[0].resolution_scale - 1.0).abs() < 1e-6);
     assert!((r.frame_budget_s - 1.0 / MOTION[0].target_fps).abs() < 1e-6);
     let shading = FrameInput {
         toggle_shading: true,
@@ -125,7 +132,7 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     assert_eq!(v.request().settings.shading, Shading::Phong);
     assert_eq!(v.request().generation, g + 3);
     // The final preset path traces at full resolution.
-    let final_ = &PRESETS[2];
+    let final_ = preset_settings(2);
     assert!(v.apply(&pick(2), t0));
     let r = v.request();
     assert_eq!(r.settings.integrator, Integrator::Path);
@@ -169,7 +176,7 @@ fn flags_override_every_preset() {
         quality: QualityArgs {
             preset: lucent_render::quality::preset("final"),
             max_depth: Some(4),
-            integrator: Some(crate::IntegratorArg::Path),
+            integrator: Some(Integrator::Path),
             rr_depth: Some(2),
             ..QualityArgs::default()
         },
@@ -192,7 +199,7 @@ fn flags_override_every_preset() {
         let s = r.settings;
         assert_eq!((s.integrator, s.max_depth, s.rr_depth), (Integrator::Path, 4, 2));
         // What no flag sets still follows the preset.
-        assert_eq!(s.shading, preset.shading);
+        assert_eq!(Some(s.shading), preset.settings.shading);
     }
     // The integrator key still switches, but the depth stays the flag's.
     let integrator = FrameInput {

@@ -3,25 +3,11 @@
 //! new generation never lets an older frame through.
 
 use super::*;
-use lucent_geom::{Affine3A, Vec3, shapes};
+use lucent_geom::Vec3;
 use lucent_render::render_samples;
-use lucent_scene::Scene;
-use lucent_scene::components::{Camera, Light, Material};
 
 fn scene() -> RenderScene {
-    let mut scene = Scene::default();
-    let mesh = scene.add_mesh("ball", shapes::icosphere(2));
-    let mat = scene.add_material("white", Material::default());
-    scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
-    scene.add_light(
-        "sun",
-        Light::Directional {
-            to_light: Vec3::Y,
-            intensity: Vec3::ONE,
-        },
-    );
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
-    lucent_render::extract(&scene).unwrap()
+    lucent_render::extract(&lucent_scene::fixtures::ball_under_sun()).unwrap()
 }
 
 fn request(generation: u64, moving: bool, max_spp: u32) -> Request {

@@ -1,4 +1,4 @@
-//! `lucent bench rays`: the traversal core alone, on the Embree peer's ray
+//! `lucent-bench rays`: the traversal core alone, on the Embree peer's ray
 //! sets, in the peer's file formats (`../shared/peers/embree`).
 //!
 //! Loads a mesh with the peer's conventions (polygons fanned in file order,
@@ -11,17 +11,17 @@
 //! the closest hits against another tracer's hits file and classifies every
 //! disagreement (see [`compare`]).
 
-use crate::bench_cmd::{json_str, median};
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use lucent_accel::{BuildParams, BuildQuality, MeshBvh, TraversalCounts};
-use lucent_geom::{Ray, TriMesh, TriangleTest, Vec3};
+use lucent_geom::{Named, Ray, TriMesh, TriangleTest, Vec3};
+use lucent_render::metrics::median;
 use lucent_render::with_threads;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-/// Arguments of `lucent bench rays`.
+/// Arguments of `lucent-bench rays`.
 #[derive(Args, Debug)]
 pub struct RaysBenchArgs {
     /// Mesh file (.ply or .obj); all parts are concatenated in file order.
@@ -43,35 +43,38 @@ pub struct RaysBenchArgs {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     reps: u32,
     /// Build quality.
-    #[arg(long, value_enum, default_value_t = QualityArg::Default)]
-    quality: QualityArg,
+    #[arg(long, value_name = "NAME", default_value = "default", value_parser = named::<BuildQuality>())]
+    quality: BuildQuality,
     /// Ray-triangle test.
-    #[arg(long, value_enum, default_value_t = TestArg::Watertight)]
-    test: TestArg,
+    #[arg(long, value_name = "NAME", default_value = "watertight", value_parser = named::<TriangleTest>())]
+    test: TriangleTest,
     /// Compare the closest hits with this hits file (e.g. Embree's).
     #[arg(long, value_name = "FILE")]
     compare_hits: Option<PathBuf>,
     /// Compare the any-hit results with this occlusion file (needs --occluded).
     #[arg(long, value_name = "FILE", requires = "occluded")]
     compare_occluded: Option<PathBuf>,
-    /// After timing, one untimed pass that counts the 4-wide nodes and
+    /// After timing, one untimed pass that counts the 8-wide nodes and
     /// triangle packs each query tests (closest hit, and any hit with
     /// --occluded); adds nodes_per_ray and packs_per_ray to the JSON line.
     #[arg(long)]
     counts: bool,
+    /// Walk with the portable box test even where the AVX2 one would run
+    /// (to compare the two in one binary).
+    #[arg(long)]
+    portable: bool,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum QualityArg {
-    Fast,
-    Default,
-    High,
+/// A flag whose values are a [`Named`] enum's names.
+fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(T::NAMES.iter().map(|&(n, _)| n))
+        .try_map(|name| T::from_name(&name).ok_or_else(|| format!("expected {}", T::name_list())))
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum TestArg {
-    Watertight,
-    MollerTrumbore,
+/// `s` as a JSON string literal, quotes and escapes included.
+fn json_str(s: &str) -> String {
+    serde_json::Value::from(s).to_string()
 }
 
 /// Rays handed to a thread at a time.
@@ -80,15 +83,7 @@ const CHUNK: usize = 4096;
 pub fn run(args: RaysBenchArgs) -> Result<()> {
     let mesh = load_peer_mesh(&args.mesh)?;
     let rays = read_rays(&args.rays)?;
-    let quality = match args.quality {
-        QualityArg::Fast => BuildQuality::Fast,
-        QualityArg::Default => BuildQuality::Default,
-        QualityArg::High => BuildQuality::High,
-    };
-    let test = match args.test {
-        TestArg::Watertight => TriangleTest::Watertight,
-        TestArg::MollerTrumbore => TriangleTest::MollerTrumbore,
-    };
+    let (quality, test) = (args.quality, args.test);
     let threads = usize::from(args.threads);
     let params = BuildParams::for_quality(quality);
     // In a pool of `threads` workers started once: one discarded build warms
@@ -104,13 +99,13 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
         build_times.remove(0);
         (bvh, median(&mut build_times))
     })?;
-    let bvh = bvh.with_triangle_test(test);
+    let bvh = bvh.with_triangle_test(test).with_vector_kernel(!args.portable);
 
     let mut hits = vec![Hit::MISS; rays.len()];
     let trace_s = time_passes(args.reps, || trace(&bvh, &rays, &mut hits, threads));
     let n_hits = hits.iter().filter(|h| h.prim >= 0).count();
     let mut json = format!(
-        "{{\"mesh\":{},\"rays_file\":{},\"triangles\":{},\"quality\":\"{}\",\"test\":\"{}\",\"threads\":{},\
+        "{{\"mesh\":{},\"rays_file\":{},\"triangles\":{},\"quality\":\"{}\",\"test\":\"{}\",\"kernel\":\"{}\",\"threads\":{},\
 \"build_s\":{:.5},\"rays\":{},\"reps\":{},\"trace_s\":{:.5},\"mrays_s\":{:.3},\"hits\":{},\"bytes\":{},\
 \"bytes_per_triangle\":{:.1}",
         json_str(&args.mesh.display().to_string()),
@@ -118,6 +113,7 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
         mesh.n_triangles(),
         quality.name(),
         test.name(),
+        if bvh.vector_kernel() { "avx2" } else { "portable" },
         threads,
         build_s,
         rays.len(),

@@ -1,0 +1,219 @@
+//! Render settings and the one way to change them.
+//!
+//! [`RenderSettings`] is what a render runs with. Everything that changes
+//! settings, the scene file's `[render]` table, the quality presets and the
+//! command-line flags, produces a [`RenderOverrides`] (one `Option` per
+//! setting) and calls its [`apply`](RenderOverrides::apply), in that order.
+//!
+//! Adding a setting takes two edits in this file: a field (and its default)
+//! in [`RenderSettings`], and the same field as an `Option` in
+//! [`RenderOverrides`] with its line in `apply`. The scene file then reads
+//! it (with the range check named in its `deserialize_with`); a preset or a
+//! command-line flag that sets it is a third edit, where it is wanted.
+//! Enum settings implement [`Named`], so the file, the flags and the viewer
+//! share one table of names.
+
+use crate::file::{depth, image_size, named, rr_depth, spp, unit_interval};
+use lucent_geom::Named;
+use serde::Deserialize;
+
+/// How the Whitted integrator evaluates the Phong model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Shading {
+    /// Lighting at the three vertices, interpolated across the triangle (the
+    /// report's S10).
+    #[default]
+    Gouraud,
+    /// Lighting at the hit point with the interpolated normal.
+    Phong,
+}
+
+impl Named for Shading {
+    const NAMES: &'static [(&'static str, Self)] = &[("gouraud", Shading::Gouraud), ("phong", Shading::Phong)];
+}
+
+/// Which light transport algorithm renders the image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Integrator {
+    /// The seed report's Whitted ray tracer: Phong local lighting, shadow
+    /// rays, mirror and refraction rays weighted by `kr` and `kt`.
+    #[default]
+    Whitted,
+    /// Unidirectional path tracing of physically based BSDFs, with
+    /// next-event estimation and multiple importance sampling.
+    Path,
+}
+
+impl Named for Integrator {
+    const NAMES: &'static [(&'static str, Self)] = &[("whitted", Integrator::Whitted), ("path", Integrator::Path)];
+}
+
+/// Image and quality settings for a render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples (primary rays) per pixel.
+    pub spp: u32,
+    /// Path length limit. Whitted: the deepest reflection/refraction
+    /// recursion (0 traces camera rays and their shadow rays only). Path:
+    /// Mitsuba's `max_depth`, the longest path in segments counted from the
+    /// camera (1 shows only emitters seen directly, 2 adds direct light, and
+    /// so on); a Whitted depth `d` follows the same chains as a path depth
+    /// `d + 2`.
+    pub max_depth: u32,
+    /// Rays whose accumulated weight falls below this are not traced (S11).
+    pub min_weight: f32,
+    /// Path tracer: Russian roulette may end a path once it has bounced
+    /// this many times (Mitsuba's `rr_depth`; 5 by default). Lower is
+    /// faster and noisier; it adds no bias.
+    pub rr_depth: u32,
+    /// Gouraud or per-pixel Phong.
+    pub shading: Shading,
+    /// Seed of the per-pixel sample streams.
+    pub seed: u64,
+    /// Whitted (the report's model) or path tracing.
+    pub integrator: Integrator,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            width: 640,
+            height: 360,
+            spp: 1,
+            max_depth: 5,
+            min_weight: 0.01,
+            rr_depth: 5,
+            shading: Shading::Gouraud,
+            seed: 0,
+            integrator: Integrator::Whitted,
+        }
+    }
+}
+
+/// Changes to [`RenderSettings`]: `None` keeps the setting as it is.
+///
+/// It is also the scene file's `[render]` table, each key checked against
+/// the range its field documents.
+///
+/// ```
+/// use lucent_scene::{Integrator, RenderOverrides, RenderSettings};
+/// let mut settings = RenderSettings::default();
+/// let path = RenderOverrides { integrator: Some(Integrator::Path), spp: Some(16), ..RenderOverrides::NONE };
+/// path.apply(&mut settings);
+/// assert_eq!((settings.integrator, settings.spp), (Integrator::Path, 16));
+/// assert_eq!(settings.width, RenderSettings::default().width);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderOverrides {
+    /// Image width in pixels (1 to 16384).
+    #[serde(default, deserialize_with = "image_size")]
+    pub width: Option<u32>,
+    /// Image height in pixels (1 to 16384).
+    #[serde(default, deserialize_with = "image_size")]
+    pub height: Option<u32>,
+    /// Samples per pixel (1 to 65536).
+    #[serde(default, deserialize_with = "spp")]
+    pub spp: Option<u32>,
+    /// Path length limit (0 to 64); its meaning depends on the integrator.
+    #[serde(default, deserialize_with = "depth")]
+    pub max_depth: Option<u32>,
+    /// Minimum ray weight (0 to 1).
+    #[serde(default, deserialize_with = "unit_interval")]
+    pub min_weight: Option<f32>,
+    /// Bounces before Russian roulette may end a path (1 to 64).
+    #[serde(default, deserialize_with = "rr_depth")]
+    pub rr_depth: Option<u32>,
+    /// `"gouraud"` or `"phong"`.
+    #[serde(default, deserialize_with = "named")]
+    pub shading: Option<Shading>,
+    /// Sample seed.
+    pub seed: Option<u64>,
+    /// `"whitted"` or `"path"`.
+    #[serde(default, deserialize_with = "named")]
+    pub integrator: Option<Integrator>,
+}
+
+impl RenderOverrides {
+    /// Changes nothing (for `..RenderOverrides::NONE` in constants).
+    pub const NONE: RenderOverrides = RenderOverrides {
+        width: None,
+        height: None,
+        spp: None,
+        max_depth: None,
+        min_weight: None,
+        rr_depth: None,
+        shading: None,
+        seed: None,
+        integrator: None,
+    };
+
+    /// Writes every setting that is `Some` into `settings`.
+    pub fn apply(&self, settings: &mut RenderSettings) {
+        fn set<T: Copy>(field: &mut T, value: Option<T>) {
+            if let Some(v) = value {
+                *field = v;
+            }
+        }
+        let s = settings;
+        set(&mut s.width, self.width);
+        set(&mut s.height, self.height);
+        set(&mut s.spp, self.spp);
+        set(&mut s.max_depth, self.max_depth);
+        set(&mut s.min_weight, self.min_weight);
+        set(&mut s.rr_depth, self.rr_depth);
+        set(&mut s.shading, self.shading);
+        set(&mut s.seed, self.seed);
+        set(&mut s.integrator, self.integrator);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_setting_enum_has_one_name_per_value() {
+        lucent_geom::assert_table(&[Shading::Gouraud, Shading::Phong]);
+        lucent_geom::assert_table(&[Integrator::Whitted, Integrator::Path]);
+    }
+
+    #[test]
+    fn apply_changes_only_what_is_set() {
+        let before = RenderSettings {
+            seed: 3,
+            ..RenderSettings::default()
+        };
+        let mut s = before;
+        RenderOverrides::NONE.apply(&mut s);
+        assert_eq!(s, before);
+        let all = RenderOverrides {
+            width: Some(1),
+            height: Some(2),
+            spp: Some(3),
+            max_depth: Some(4),
+            min_weight: Some(0.5),
+            rr_depth: Some(6),
+            shading: Some(Shading::Phong),
+            seed: Some(7),
+            integrator: Some(Integrator::Path),
+        };
+        all.apply(&mut s);
+        let want = RenderSettings {
+            width: 1,
+            height: 2,
+            spp: 3,
+            max_depth: 4,
+            min_weight: 0.5,
+            rr_depth: 6,
+            shading: Shading::Phong,
+            seed: 7,
+            integrator: Integrator::Path,
+        };
+        assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
+    }
+}

@@ -1,0 +1,74 @@
+//! `lucent merge`: adds the partial files of a split render (`lucent render
+//! --part K/N --partial FILE`) into the image one `lucent render` makes,
+//! byte for byte, after checking that they belong together and cover every
+//! share exactly once (`lucent_render::partial::Merger`).
+
+use crate::check_png_path;
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use lucent_render::partial::Merger;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `lucent merge`.
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// The partial files, one per share, in any order.
+    #[arg(required = true, value_name = "PART.lpart")]
+    parts: Vec<PathBuf>,
+    /// Output PNG file, as `lucent render -o` writes it.
+    #[arg(short, long, value_name = "FILE.png", required_unless_present = "exr")]
+    output: Option<PathBuf>,
+    /// Output linear EXR file, as `lucent render --exr` writes it.
+    #[arg(long, value_name = "FILE.exr")]
+    exr: Option<PathBuf>,
+    /// Exposure of the PNG in stops, as `lucent render --exposure`.
+    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+}
+
+pub fn run(args: MergeArgs) -> Result<()> {
+    if let Some(png) = &args.output {
+        check_png_path(png)?;
+    }
+    if let Some(exr) = &args.exr {
+        let ext = exr.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if ext.as_deref() != Some("exr") {
+            bail!("{}: the --exr file name must end in .exr", exr.display());
+        }
+    }
+    if !(-64.0..=64.0).contains(&args.exposure) {
+        bail!("--exposure {}: give an exposure from -64 to 64 stops", args.exposure);
+    }
+    let start = Instant::now();
+    let mut merger = Merger::new();
+    for part in &args.parts {
+        let name = part.display().to_string();
+        let file = std::fs::File::open(part).with_context(|| name.clone())?;
+        let mut input = std::io::BufReader::with_capacity(1 << 20, file);
+        merger.add(&name, &mut input)?;
+    }
+    let (header, film) = merger.finish()?;
+    let read_s = start.elapsed().as_secs_f64();
+    let (w, h) = (film.width(), film.height());
+    if let Some(png) = &args.output {
+        lucent_assets::save_png(png, w, h, &film.to_srgb8_exposed(args.exposure))?;
+    }
+    if let Some(exr) = &args.exr {
+        lucent_assets::save_exr(exr, w, h, &film.to_linear_rgb())?;
+    }
+    let outputs: Vec<String> = [&args.output, &args.exr]
+        .into_iter()
+        .flatten()
+        .map(|p| p.display().to_string())
+        .collect();
+    println!(
+        "{}: merged {} parts of {}, {w}x{h}, {} spp, in {:.2} s (reading and adding {read_s:.2} s)",
+        outputs.join(" + "),
+        args.parts.len(),
+        header.scene,
+        film.n_samples(),
+        start.elapsed().as_secs_f64(),
+    );
+    Ok(())
+}
