@@ -274,6 +274,16 @@ fn check_png_path(path: &Path) -> Result<()> {
     check_writable(path)
 }
 
+/// Checks that an `--exr` path ends in .exr and can be written, before
+/// any work (shared by `render` and `merge`).
+fn check_exr_path(path: &Path) -> Result<()> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if ext.as_deref() != Some("exr") {
+        bail!("{}: the --exr file name must end in .exr", path.display());
+    }
+    check_writable(path)
+}
+
 /// Fails now, not after a long render, when `path` cannot be written (a
 /// missing directory, no permission). Leaves an existing file as it is and
 /// removes the empty file it made to find out.

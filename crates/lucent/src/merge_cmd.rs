@@ -3,8 +3,8 @@
 //! byte for byte, after checking that they belong together and cover every
 //! share exactly once (`lucent_render::partial::Merger`).
 
-use crate::check_png_path;
-use anyhow::{Context, Result, bail};
+use crate::{check_exr_path, check_png_path};
+use anyhow::{Context, Result};
 use clap::Args;
 use lucent_render::partial::Merger;
 use std::path::PathBuf;
@@ -23,7 +23,7 @@ pub struct MergeArgs {
     #[arg(long, value_name = "FILE.exr")]
     exr: Option<PathBuf>,
     /// Exposure of the PNG in stops, as `lucent render --exposure`.
-    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::render_cmd::parse_ev)]
     exposure: f32,
 }
 
@@ -32,13 +32,7 @@ pub fn run(args: MergeArgs) -> Result<()> {
         check_png_path(png)?;
     }
     if let Some(exr) = &args.exr {
-        let ext = exr.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        if ext.as_deref() != Some("exr") {
-            bail!("{}: the --exr file name must end in .exr", exr.display());
-        }
-    }
-    if !(-64.0..=64.0).contains(&args.exposure) {
-        bail!("--exposure {}: give an exposure from -64 to 64 stops", args.exposure);
+        check_exr_path(exr)?;
     }
     let start = Instant::now();
     let mut merger = Merger::new();

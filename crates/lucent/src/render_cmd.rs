@@ -1,7 +1,7 @@
 //! `lucent render`: headless rendering to a PNG and/or a linear EXR file.
 
-use crate::{QualityArgs, check_png_path, check_writable, prepare_scene};
-use anyhow::{Context, Result, bail};
+use crate::{QualityArgs, check_exr_path, check_png_path, prepare_scene};
+use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_geom::Named;
@@ -77,7 +77,7 @@ fn parse_target_error(s: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_ev(s: &str) -> Result<f32, String> {
+pub(crate) fn parse_ev(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if (-64.0..=64.0).contains(&v) => Ok(v),
         _ => Err(format!("'{s}' is not an exposure from -64 to 64 stops")),
@@ -92,11 +92,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         check_png_path(png)?;
     }
     if let Some(exr) = &args.exr {
-        let ext = exr.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        if ext.as_deref() != Some("exr") {
-            bail!("{}: the --exr file name must end in .exr", exr.display());
-        }
-        check_writable(exr)?;
+        check_exr_path(exr)?;
     }
     let (mut scene, name, load_s) = prepare_scene(args.scene.as_deref(), &args.quality, args.spp)?;
     if args.time_budget.is_some() || args.target_error.is_some() {
