@@ -5,6 +5,8 @@
 //!   [`Scene`](lucent_scene::Scene);
 //! - [`load_mesh`] reads one OBJ (with its MTL materials) or PLY file;
 //! - [`load_texture`] decodes PNG/JPEG into linear RGB;
+//! - [`load_environment_map`] decodes an equirectangular Radiance HDR or
+//!   OpenEXR panorama (linear RGB) for the scene's environment;
 //! - [`encode_png`] / [`save_png`] write 8-bit sRGB images, [`encode_exr`] /
 //!   [`save_exr`] linear float OpenEXR images ([`decode_exr`] reads them back);
 //! - [`encode_ply`] / [`save_ply`] write triangle meshes as PLY.
@@ -44,8 +46,8 @@ mod hostile_tests;
 
 pub use error::{AssetError, LoadReport, Location};
 pub use image_io::{
-    MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png, load_texture, save_exr,
-    save_png, texture_from_bytes,
+    MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png, environment_map_from_bytes,
+    load_environment_map, load_texture, save_exr, save_png, texture_from_bytes,
 };
 pub use mesh::{MeshPart, load_mesh, load_mesh_from, merged_geometry};
 pub use ply_write::{PlyFormat, encode_ply, save_ply};

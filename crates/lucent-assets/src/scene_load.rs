@@ -1,6 +1,8 @@
 //! Scene files: parse, load what they refer to, spawn the entities.
 
-use crate::{AssetError, AssetSource, FileSystem, LoadReport, load_mesh_from, load_texture, normalize_path};
+use crate::{
+    AssetError, AssetSource, FileSystem, LoadReport, load_environment_map, load_mesh_from, load_texture, normalize_path,
+};
 use lucent_geom::{Aabb, shapes};
 use lucent_scene::components::{Camera, Light, Material, Mesh, MeshRef, OrbitRig, Texture};
 use lucent_scene::hecs::{Entity, World};
@@ -43,6 +45,7 @@ pub fn load_scene_from(source: &dyn AssetSource, path: &Path) -> Result<(Scene, 
         meshes: HashMap::new(),
     };
     loader.apply_settings();
+    loader.load_environment_map()?;
     loader.spawn_materials()?;
     loader.spawn_objects()?;
     loader.spawn_lights();
@@ -77,6 +80,8 @@ impl Loader<'_> {
         let d = &self.file.desc;
         let env = &mut self.scene.environment;
         env.background = d.environment.background.0;
+        env.intensity = d.environment.intensity;
+        env.rotation_deg = d.environment.rotation_deg;
         env.ambient = d.environment.ambient.0;
         env.shadowed_ambient = d.environment.shadowed_ambient;
         let r = &d.render;
@@ -91,7 +96,36 @@ impl Loader<'_> {
             shading: r.shading.unwrap_or(s.shading),
             seed: r.seed.unwrap_or(s.seed),
             integrator: r.integrator.unwrap_or(s.integrator),
+            tonemap: r.tonemap.unwrap_or(s.tonemap),
         };
+    }
+
+    /// `[environment] map`: decoded once; an unreadable or unusable file is
+    /// an error at the `map` value, bad texels (NaN, infinite, negative) a
+    /// warning that counts them.
+    fn load_environment_map(&mut self) -> Result<(), AssetError> {
+        let Some(map) = &self.file.desc.environment.map else {
+            return Ok(());
+        };
+        let path = normalize_path(&self.file.resolve(map.get_ref()));
+        let (env_map, bad) = load_environment_map(self.source, &path).map_err(|e| {
+            self.file.error_at(
+                map.span(),
+                format!(
+                    "cannot load environment map '{}': {}",
+                    map.get_ref(),
+                    crate::image_io::texture_problem(&e)
+                ),
+            )
+        })?;
+        if bad > 0 {
+            self.report.warn(
+                &path,
+                format!("{bad} texels are NaN, infinite or negative; they are black"),
+            );
+        }
+        self.scene.environment.map = Some(Arc::new(env_map));
+        Ok(())
     }
 
     fn spawn_materials(&mut self) -> Result<(), AssetError> {
@@ -238,7 +272,7 @@ impl Loader<'_> {
             .query::<&Material>()
             .iter()
             .any(|m| m.emission.max_element() > 0.0);
-        if self.file.desc.lights.is_empty() && !emissive {
+        if self.file.desc.lights.is_empty() && !emissive && self.scene.environment.map.is_none() {
             self.report
                 .warn(&self.file.path, "no lights: only ambient light will show");
         }

@@ -33,6 +33,7 @@
 #![forbid(unsafe_code)]
 
 mod camera;
+pub mod envlight;
 mod extract;
 mod film;
 pub mod flat;
@@ -52,7 +53,7 @@ pub use extract::{
 };
 pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;
-pub use lucent_scene::{Integrator, RenderSettings, Shading};
+pub use lucent_scene::{Integrator, RenderSettings, Shading, Tonemap};
 pub use progressive::{AdaptiveOutput, render_for, render_to_error};
 pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{

@@ -1,6 +1,7 @@
 //! The lights the path tracer samples: emissive triangles (area lights, from
 //! materials with `emission`, OBJ `Ke` included), point and directional
-//! lights, chosen in proportion to their power.
+//! lights and the environment ([`EnvLight`]: an HDR map or the constant
+//! background), chosen in proportion to their power.
 //!
 //! An emissive triangle emits its material's `emission` as constant radiance
 //! on one side only: the side its geometric normal points to, oriented to
@@ -13,10 +14,12 @@
 //! luminance(radiance)` for a triangle, `4 pi * luminance(intensity)` for a
 //! point light and `pi * r^2 * luminance(irradiance)` for a directional light,
 //! `r` being the radius of the scene's bounding sphere. A point is then drawn
-//! uniformly over the chosen triangle's area. The constant background is not
-//! sampled here: paths that leave the scene collect it.
+//! uniformly over the chosen triangle's area. The environment is priced
+//! like a directional light whose irradiance is `pi` times the map's mean
+//! luminance ([`EnvLight::power`]); it is sampled by its own distribution.
 
 use crate::RenderInstance;
+use crate::envlight::EnvLight;
 use crate::interaction::SurfaceInteraction;
 use lucent_accel::SceneHit;
 use lucent_geom::{Ray, TriMesh, Vec2, Vec3, offset_ray_origin_scaled};
@@ -130,8 +133,11 @@ pub struct LightSet {
     /// Cumulative selection probabilities over emitters then lights; the last
     /// entry is 1 (empty when there is nothing to sample).
     cdf: Vec<f32>,
-    /// Selection probability of each emitter then light.
+    /// Selection probability of each emitter then light, then the
+    /// environment.
     prob: Vec<f32>,
+    /// The environment, picked after every emitter and light.
+    environment: Option<EnvLight>,
 }
 
 impl LightSet {
@@ -143,6 +149,18 @@ impl LightSet {
         materials: &[Material],
         instances: &[RenderInstance],
         lights: &[Light],
+        scene_radius: f32,
+    ) -> LightSet {
+        Self::with_environment(meshes, materials, instances, lights, None, scene_radius)
+    }
+
+    /// [`LightSet::new`] plus the environment as a light.
+    pub fn with_environment(
+        meshes: &[Arc<TriMesh>],
+        materials: &[Material],
+        instances: &[RenderInstance],
+        lights: &[Light],
+        environment: Option<EnvLight>,
         scene_radius: f32,
     ) -> LightSet {
         let mut emitters = Vec::new();
@@ -210,6 +228,7 @@ impl LightSet {
                 Light::Point { intensity, .. } => 4.0 * std::f32::consts::PI * lum(intensity),
                 Light::Directional { intensity, .. } => std::f32::consts::PI * r * r * lum(intensity).max(0.0),
             }))
+            .chain(environment.iter().map(|env| env.power(r)))
             .map(|p| if p.is_finite() { p as f64 } else { 0.0 })
             .collect::<Vec<f64>>();
         let total: f64 = power.iter().sum();
@@ -236,6 +255,7 @@ impl LightSet {
             instance_first,
             cdf,
             prob,
+            environment,
         }
     }
 
@@ -250,6 +270,26 @@ impl LightSet {
             + self.lights.len() * size_of::<Light>()
             + self.instance_first.len() * size_of::<u32>()
             + (self.cdf.len() + self.prob.len()) * size_of::<f32>()
+            + self.environment.as_ref().map_or(0, EnvLight::table_bytes)
+    }
+
+    /// The environment, when it gives light.
+    #[inline]
+    pub fn environment(&self) -> Option<&EnvLight> {
+        self.environment.as_ref()
+    }
+
+    /// Solid-angle density with which [`LightSet::sample`] picks the
+    /// environment in direction `dir`, its selection probability included.
+    #[inline]
+    pub fn pdf_environment(&self, dir: Vec3) -> f32 {
+        let (Some(env), Some(&p)) = (
+            &self.environment,
+            self.prob.get(self.emitters.len() + self.lights.len()),
+        ) else {
+            return 0.0;
+        };
+        p * env.pdf(dir)
     }
 
     /// The emissive triangles.
@@ -335,7 +375,19 @@ impl LightSet {
                 delta: false,
             });
         }
-        let light = self.lights.get(idx - self.emitters.len())?;
+        let Some(light) = self.lights.get(idx - self.emitters.len()) else {
+            let s = self.environment.as_ref()?.sample(u)?;
+            return Some(LightSample {
+                wi: s.wi,
+                distance: f32::INFINITY,
+                point: from + s.wi * f32::MAX,
+                normal: Vec3::ZERO,
+                magnitude: 0.0,
+                value: s.radiance,
+                pdf: p * s.pdf,
+                delta: false,
+            });
+        };
         let s = light.sample(from)?;
         Some(LightSample {
             wi: s.to_light,

@@ -45,5 +45,5 @@ pub use file::{
     SceneFileError, ShapeKind, TextureDesc,
 };
 pub use hecs;
-pub use scene::{EntityCounts, Environment, Integrator, RenderSettings, Scene, Shading};
+pub use scene::{EntityCounts, Environment, Integrator, RenderSettings, Scene, Shading, Tonemap};
 pub use transform::world_from_local;

@@ -3,6 +3,8 @@
 use crate::components::{Camera, Light, Material, MaterialRef, Mesh, MeshRef, Name, OrbitRig, Transform};
 use hecs::{Entity, World};
 use lucent_geom::{Affine3A, TriMesh, Vec3};
+use lucent_shading::EnvironmentMap;
+use lucent_shading::color::aces_filmic;
 use std::sync::Arc;
 
 /// How the Whitted integrator evaluates the Phong model.
@@ -66,11 +68,78 @@ impl Integrator {
     }
 }
 
+/// How linear radiance becomes a displayable value in [0, 1], after the
+/// exposure and before sRGB encoding. EXR output is never tone mapped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Tonemap {
+    /// Clip each channel to [0, 1] (bright areas burn out).
+    #[default]
+    Clamp,
+    /// The ACES filmic fit ([`aces_filmic`]): highlights roll off smoothly.
+    Filmic,
+}
+
+impl Tonemap {
+    /// Names as written in scene files and on the command line.
+    pub const NAMES: [(&'static str, Tonemap); 2] = [("clamp", Tonemap::Clamp), ("filmic", Tonemap::Filmic)];
+
+    /// The curve called `name`.
+    pub fn from_name(name: &str) -> Option<Tonemap> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|&(_, t)| t)
+    }
+
+    /// This curve's name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, t)| *t == self).map_or("clamp", |(n, _)| n)
+    }
+
+    /// The other curve (the viewer's toggle key).
+    pub fn next(self) -> Tonemap {
+        match self {
+            Tonemap::Clamp => Tonemap::Filmic,
+            Tonemap::Filmic => Tonemap::Clamp,
+        }
+    }
+
+    /// Maps one linear (already exposed) channel into [0, 1]; NaN gives 0.
+    ///
+    /// ```
+    /// use lucent_scene::Tonemap;
+    /// assert_eq!(Tonemap::Clamp.apply(3.0), 1.0);
+    /// assert!(Tonemap::Filmic.apply(3.0) < 1.0);
+    /// ```
+    #[inline]
+    pub fn apply(self, c: f32) -> f32 {
+        match self {
+            Tonemap::Clamp => {
+                if c.is_nan() {
+                    0.0
+                } else {
+                    c.clamp(0.0, 1.0)
+                }
+            }
+            Tonemap::Filmic => aces_filmic(c),
+        }
+    }
+}
+
 /// Light and colour that belong to the whole scene rather than to an entity.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Environment {
-    /// Radiance of rays that leave the scene (linear RGB).
+    /// Radiance of rays that leave the scene (linear RGB) when there is no
+    /// `map`: a constant environment, which the path tracer samples as a
+    /// light (the one-texel map).
     pub background: Vec3,
+    /// An HDR panorama of the radiance arriving from every direction
+    /// (equirectangular, Mitsuba's convention; see
+    /// [`lucent_shading::environment`]). When set it replaces `background`.
+    pub map: Option<Arc<EnvironmentMap>>,
+    /// Scale of the map's radiance.
+    pub intensity: f32,
+    /// Rotation of the map about +y in degrees (right-handed: positive turns
+    /// +z towards +x), Mitsuba's `to_world` rotation about y.
+    pub rotation_deg: f32,
     /// The report's ambient light Ia.
     pub ambient: Vec3,
     /// Report semantics: shadow rays also darken the ambient term, so opaque
@@ -82,6 +151,9 @@ impl Default for Environment {
     fn default() -> Self {
         Self {
             background: Vec3::ZERO,
+            map: None,
+            intensity: 1.0,
+            rotation_deg: 0.0,
             ambient: Vec3::splat(0.2),
             shadowed_ambient: true,
         }
@@ -116,6 +188,8 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Whitted (the report's model) or path tracing.
     pub integrator: Integrator,
+    /// Tone curve of 8-bit output (PNG, the viewer).
+    pub tonemap: Tonemap,
 }
 
 impl Default for RenderSettings {
@@ -130,6 +204,7 @@ impl Default for RenderSettings {
             shading: Shading::Gouraud,
             seed: 0,
             integrator: Integrator::Whitted,
+            tonemap: Tonemap::Clamp,
         }
     }
 }

@@ -18,7 +18,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use lucent_assets::LoadReport;
 use lucent_render::quality::{self, QualityPreset};
 use lucent_render::{ExtractOptions, RenderSettings};
-use lucent_scene::{Integrator, Scene, Shading};
+use lucent_scene::{Integrator, Scene, Shading, Tonemap};
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -77,6 +77,16 @@ struct QualityArgs {
     /// Light transport: the report's Whitted model or path tracing.
     #[arg(long, value_enum)]
     integrator: Option<IntegratorArg>,
+    /// Tone curve of 8-bit output: clamp (clip at 1) or filmic (ACES fit,
+    /// highlights roll off). EXR output stays linear.
+    #[arg(long, value_enum)]
+    tonemap: Option<TonemapArg>,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum TonemapArg {
+    Clamp,
+    Filmic,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -134,6 +144,12 @@ impl QualityArgs {
             s.integrator = match i {
                 IntegratorArg::Whitted => Integrator::Whitted,
                 IntegratorArg::Path => Integrator::Path,
+            };
+        }
+        if let Some(t) = self.tonemap {
+            s.tonemap = match t {
+                TonemapArg::Clamp => Tonemap::Clamp,
+                TonemapArg::Filmic => Tonemap::Filmic,
             };
         }
     }

@@ -41,6 +41,7 @@ pub const CONTROLS: &str = "Controls:
   F1-F4 or 1-4        quality preset: preview, interactive, final, reference
   G                   switch Gouraud / per-pixel Phong shading
   I                   switch integrator: the report's Whitted model / path tracing
+  T                   switch tone curve: clamp / filmic (ACES fit; highlights roll off)
   P                   save a screenshot (lucent-<unix ms>.png in the current directory)
   Esc                 quit
 
@@ -344,6 +345,10 @@ impl ViewState {
                 Shading::Gouraud => Shading::Phong,
                 Shading::Phong => Shading::Gouraud,
             };
+            changed_settings = true;
+        }
+        if input.toggle_tonemap {
+            self.settings.tonemap = self.settings.tonemap.next();
             changed_settings = true;
         }
         if input.toggle_integrator {
