@@ -23,6 +23,7 @@ const TARGETS: &[(&str, &[&str])] = &[
     ("mtl", &["mtl"]),
     ("scene", &[]),
     ("texture", &[]),
+    ("envmap", &["hdr"]),
 ];
 
 /// Seeds bigger than this are cut (at a line end for text formats), so

@@ -162,6 +162,18 @@ impl EnvLight {
         })
     }
 
+    /// Turns the map to `rotation_deg` about +y (the distribution lives in
+    /// the map's frame, so only the rotation changes; nothing is rebuilt).
+    pub fn set_rotation(&mut self, rotation_deg: f32) {
+        let angle = if rotation_deg.is_finite() {
+            rotation_deg.to_radians()
+        } else {
+            0.0
+        };
+        self.world_from_map = Mat3::from_rotation_y(angle);
+        self.map_from_world = self.world_from_map.transpose();
+    }
+
     /// Radiance arriving from the unit direction `dir` (world space).
     #[inline]
     pub fn eval(&self, dir: Vec3) -> Vec3 {

@@ -502,6 +502,13 @@ fn intern<T>(
 }
 
 impl RenderScene {
+    /// Turns the environment map to `rotation_deg` about +y without
+    /// re-extracting (the viewer's rotate key).
+    pub fn set_environment_rotation(&mut self, rotation_deg: f32) {
+        self.environment.rotation_deg = rotation_deg;
+        self.light_set.set_environment_rotation(rotation_deg);
+    }
+
     /// Radiance arriving from the unit direction `dir` from outside the
     /// scene: the environment map, or the constant background (black when
     /// neither gives light).

@@ -273,6 +273,42 @@ impl LightSet {
             + self.environment.as_ref().map_or(0, EnvLight::table_bytes)
     }
 
+    /// Turns the environment to `rotation_deg` about +y (the viewer's key);
+    /// its selection probability does not depend on the rotation.
+    pub fn set_environment_rotation(&mut self, rotation_deg: f32) {
+        if let Some(env) = &mut self.environment {
+            env.set_rotation(rotation_deg);
+        }
+    }
+
+    /// Stops next-event estimation from picking the environment: paths
+    /// then find it by BSDF sampling alone (weight 1), the other lights
+    /// keep their relative odds. What importance sampling the map buys is
+    /// measured against this (`lucent-tests`' `env_sampling` example).
+    pub fn stop_sampling_environment(&mut self) {
+        let k = self.emitters.len() + self.lights.len();
+        let Some(p_env) = self.prob.get_mut(k).map(std::mem::take) else {
+            return;
+        };
+        let rest = 1.0 - p_env;
+        if rest <= 0.0 {
+            self.cdf.clear();
+            return;
+        }
+        let mut acc = 0.0f32;
+        for (q, c) in self.prob.iter_mut().zip(self.cdf.iter_mut()) {
+            *q /= rest;
+            acc += *q;
+            *c = acc;
+        }
+        if let Some(c) = self.cdf.get_mut(..k).and_then(|c| c.last_mut()) {
+            *c = 1.0;
+        }
+        if let Some(c) = self.cdf.get_mut(k) {
+            *c = 1.0;
+        }
+    }
+
     /// The environment, when it gives light.
     #[inline]
     pub fn environment(&self) -> Option<&EnvLight> {

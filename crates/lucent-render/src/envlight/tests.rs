@@ -211,3 +211,26 @@ fn rotation_turns_the_map_about_y() {
     assert!(l.eval(Vec3::X).x > 1.0 && l.eval(Vec3::Z) == Vec3::ZERO);
     assert!(l.pdf(Vec3::X) > 0.0 && l.pdf(-Vec3::X) == 0.0);
 }
+
+#[test]
+fn without_environment_sampling_the_light_set_never_picks_it() {
+    use crate::lights::LightSet;
+    use lucent_shading::Light;
+    let env = light(gradient(), 0.0);
+    let sun = [Light::Directional {
+        to_light: Vec3::Y,
+        intensity: Vec3::ONE,
+    }];
+    let mut set = LightSet::with_environment(&[], &[], &[], &sun, Some(env.clone()), 1.0);
+    assert!(set.pdf_environment(Vec3::X) > 0.0);
+    set.stop_sampling_environment();
+    assert_eq!(set.pdf_environment(Vec3::X), 0.0);
+    let mut rng = Pcg32::new(3, 3);
+    for _ in 0..1000 {
+        let s = set.sample(Vec3::ZERO, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+        assert!(s.is_some_and(|s| s.delta && (s.pdf - 1.0).abs() < 1e-5), "{s:?}");
+    }
+    let mut alone = LightSet::with_environment(&[], &[], &[], &[], Some(env), 1.0);
+    alone.stop_sampling_environment();
+    assert!(alone.is_empty() && alone.environment().is_some() && alone.pdf_environment(Vec3::Y) == 0.0);
+}

@@ -20,6 +20,8 @@ pub struct FrameInput {
     pub toggle_integrator: bool,
     /// Switch the tone curve (clamp / filmic).
     pub toggle_tonemap: bool,
+    /// Turn the environment map a step about +y.
+    pub turn_environment: bool,
     /// Save a screenshot.
     pub screenshot: bool,
     /// Leave the viewer.
@@ -75,6 +77,7 @@ impl WindowInput {
             toggle_shading: pressed(&[Key::G]),
             toggle_integrator: pressed(&[Key::I]),
             toggle_tonemap: pressed(&[Key::T]),
+            turn_environment: pressed(&[Key::E]),
             screenshot: pressed(&[Key::P]),
             quit: down(&[Key::Escape]) || !window.is_open(),
         }
@@ -164,6 +167,7 @@ impl ScriptedInput {
             toggle_shading: self.chance(0.003),
             toggle_integrator: self.chance(0.002),
             toggle_tonemap: self.chance(0.002),
+            turn_environment: self.chance(0.002),
             screenshot: false,
             quit: false,
         }

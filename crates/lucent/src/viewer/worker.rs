@@ -41,6 +41,9 @@ pub struct Request {
     pub still_scale: f32,
     /// Samples per pixel to accumulate while still.
     pub max_spp: u32,
+    /// Degrees the environment map is turned about +y beyond the scene's
+    /// own `rotation_deg` (the viewer's E key).
+    pub env_turn_deg: f32,
 }
 
 /// A finished image, upscaled to the window.
@@ -263,6 +266,8 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
     let mut costs = CostModel::default();
     let mut film: Option<(u64, Film)> = None;
     let mut previewed: Option<u64> = None;
+    let base_rotation = scene.environment.rotation_deg;
+    let mut turned = 0.0f32;
     loop {
         let job = {
             let mut state = shared.lock();
@@ -288,6 +293,11 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
             }
         };
+        let (Job::Preview(r) | Job::Refine(r)) = &job;
+        if r.env_turn_deg != turned {
+            turned = r.env_turn_deg;
+            scene.set_environment_rotation(base_rotation + turned);
+        }
         let frame = match job {
             Job::Preview(r) => {
                 previewed = Some(r.generation);

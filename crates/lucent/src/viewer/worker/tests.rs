@@ -41,6 +41,7 @@ fn request(generation: u64, moving: bool, max_spp: u32) -> Request {
         max_scale: 4.0,
         still_scale: 1.0,
         max_spp,
+        env_turn_deg: 0.0,
     }
 }
 
