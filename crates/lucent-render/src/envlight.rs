@@ -11,11 +11,15 @@
 //! theta1)`: the luminance times `sin(theta)` of the issue, integrated
 //! exactly over the cell. A row is picked from the marginal distribution
 //! over rows and a column from that row's conditional distribution, each by
-//! binary search over a cumulative table (O(log n)); the direction is then
-//! uniform in solid angle within the cell (uniform in `cos theta` and in
-//! `phi`), so the density is constant per cell and finite at the poles.
-//! A cell's density is non-zero exactly where the bilinear radiance inside
-//! it can be, so sampling covers every direction that carries light.
+//! binary search over a cumulative table (O(log n)). Within the cell the
+//! direction follows the bilinear interpolation of the corner luminances,
+//! over `phi` and `cos theta` (a linear density across the row, then one
+//! across the column at that height), as the radiance itself is bilinear:
+//! so the density is `bilinear luminance / integral`, proportional to the
+//! luminance up to how `cos theta` and `theta` differ across one row, and a
+//! small bright sun is sampled where it is bright rather than spread over
+//! its cells. The density is non-zero wherever the bilinear radiance is,
+//! so sampling covers every direction that carries light.
 //!
 //! The tables are built once, in `extract`; sampling and evaluation never
 //! allocate. A map that is black everywhere gives no light (`None`).
@@ -58,9 +62,9 @@ pub struct EnvLight {
     /// Per row, the cumulative conditional probability of its cells,
     /// `columns + 1` entries from 0 to 1 (all 0 for a black row).
     column_cdf: Vec<f32>,
-    /// Per cell, its solid-angle density (its probability over its solid
-    /// angle).
-    density: Vec<f32>,
+    /// One over the sum of the cell weights: the density is the bilinear
+    /// luminance times this.
+    inv_total: f32,
     /// The integral of luminance over the sphere by the cell weights,
     /// intensity included (power per unit cross-section).
     luminance_integral: f32,
@@ -115,24 +119,17 @@ impl EnvLight {
         }
         let mut row_cdf = Vec::with_capacity(h + 1);
         let mut column_cdf = Vec::with_capacity(h * (w + 1));
-        let mut density = Vec::with_capacity(w * h);
         let mut acc = 0.0f64;
         row_cdf.push(0.0);
         for r in 0..h {
             let row = &weights[r * w..(r + 1) * w];
             let row_total: f64 = row.iter().sum();
-            let solid_angle = cell_solid_angle(r as u32, rows, columns);
             let mut racc = 0.0f64;
             column_cdf.push(0.0);
             for &wt in row {
                 racc += wt;
                 column_cdf.push(if row_total > 0.0 {
                     (racc / row_total) as f32
-                } else {
-                    0.0
-                });
-                density.push(if solid_angle > 0.0 {
-                    (wt / total / solid_angle) as f32
                 } else {
                     0.0
                 });
@@ -157,7 +154,7 @@ impl EnvLight {
             rows,
             row_cdf,
             column_cdf,
-            density,
+            inv_total: (1.0 / total) as f32,
             luminance_integral: (total * f64::from(intensity)) as f32,
         })
     }
@@ -183,26 +180,48 @@ impl EnvLight {
     /// Solid-angle density with which [`EnvLight::sample`] picks `dir`.
     #[inline]
     pub fn pdf(&self, dir: Vec3) -> f32 {
-        let (c, r, _, _) = self.map.cell(direction_to_uv(self.map_from_world * dir));
-        self.density
-            .get(r as usize * self.columns as usize + c as usize)
-            .copied()
-            .unwrap_or(0.0)
+        let d = self.map_from_world * dir;
+        let (c, r, fx, _) = self.map.cell(direction_to_uv(d));
+        let (theta0, theta1) = row_thetas(r, self.rows);
+        let (cos0, cos1) = (theta0.cos(), theta1.cos());
+        let t = if cos0 > cos1 {
+            ((cos0 - d.y) / (cos0 - cos1)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let [l00, l10, l01, l11] = self.corners(c, r);
+        let bilinear = lerp(t, lerp(fx, l00, l10), lerp(fx, l01, l11));
+        let pdf = bilinear * self.inv_total;
+        if pdf.is_finite() { pdf.max(0.0) } else { 0.0 }
     }
 
-    /// A direction drawn with `u` in proportion to the cell weights; `None`
-    /// only for a degenerate draw (a cell of no solid angle).
+    /// The luminances of cell `(c, r)`'s corners: top left, top right,
+    /// bottom left, bottom right.
+    #[inline]
+    fn corners(&self, c: u32, r: u32) -> [f32; 4] {
+        let r1 = if self.map.height() == 1 { r } else { r + 1 };
+        let l = |x: u32, y: u32| luminance(self.map.texel(x, y)).max(0.0);
+        [l(c, r), l(c + 1, r), l(c, r1), l(c + 1, r1)]
+    }
+
+    /// A direction drawn with `u` in proportion to the bilinear luminance
+    /// (module docs); `None` only for a degenerate draw (a point of zero
+    /// density on a cell's edge).
     #[inline]
     pub fn sample(&self, u: Vec2) -> Option<EnvSample> {
-        let (row, t) = pick(&self.row_cdf, u.x);
+        let (row, u_t) = pick(&self.row_cdf, u.x);
         let w1 = self.columns as usize + 1;
         let cdf = self.column_cdf.get(row * w1..(row + 1) * w1)?;
-        let (column, s) = pick(cdf, u.y);
-        let pdf = *self.density.get(row * self.columns as usize + column)?;
-        if pdf <= 0.0 {
+        let (column, u_s) = pick(cdf, u.y);
+        let [l00, l10, l01, l11] = self.corners(column as u32, row as u32);
+        // Across the row (cos theta) by the summed columns, then across
+        // the column at that height.
+        let t = sample_linear(u_t, l00 + l10, l01 + l11);
+        let s = sample_linear(u_s, lerp(t, l00, l01), lerp(t, l10, l11));
+        let pdf = lerp(t, lerp(s, l00, l10), lerp(s, l01, l11)) * self.inv_total;
+        if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        // Uniform in cos(theta) across the row, in phi across the column.
         let (theta0, theta1) = row_thetas(row as u32, self.rows);
         let (cos0, cos1) = (theta0.cos(), theta1.cos());
         let cos_t = (cos0 + t * (cos1 - cos0)).clamp(-1.0, 1.0);
@@ -235,8 +254,23 @@ impl EnvLight {
     /// Memory of the sampling tables, in bytes (the map itself is shared
     /// with the scene and not counted).
     pub fn table_bytes(&self) -> usize {
-        (self.row_cdf.len() + self.column_cdf.len() + self.density.len()) * size_of::<f32>()
+        (self.row_cdf.len() + self.column_cdf.len()) * size_of::<f32>()
     }
+}
+
+#[inline]
+fn lerp(t: f32, a: f32, b: f32) -> f32 {
+    a + t * (b - a)
+}
+
+/// Inverts the distribution of the linear density from `a` at 0 to `b` at
+/// 1 (both at least 0, not both 0) at `u`, in a form that stays accurate
+/// when `a` and `b` are close or one is 0.
+#[inline]
+fn sample_linear(u: f32, a: f32, b: f32) -> f32 {
+    let denom = a + lerp(u, a * a, b * b).max(0.0).sqrt();
+    let x = if denom > 0.0 { u * (a + b) / denom } else { u };
+    x.clamp(0.0, 1.0)
 }
 
 /// The polar angles bounding cell row `row` of `rows`.
