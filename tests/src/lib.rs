@@ -77,7 +77,13 @@ pub fn place_scene(scene: &mut Scene, scale: f32, translate: Vec3) {
 
 /// Encodes a film as an 8-bit sRGB PNG.
 pub fn film_png(film: &Film) -> Vec<u8> {
-    lucent_assets::encode_png(film.width(), film.height(), &film.to_srgb8()).unwrap_or_else(|e| panic!("{e}"))
+    film_png_tonemapped(film, lucent_render::Tonemap::Clamp)
+}
+
+/// [`film_png`] through the tone curve `tonemap`.
+pub fn film_png_tonemapped(film: &Film, tonemap: lucent_render::Tonemap) -> Vec<u8> {
+    lucent_assets::encode_png(film.width(), film.height(), &film.to_srgb8_tonemapped(0.0, tonemap))
+        .unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Asserts a binary PNG snapshot `NAME.png` of `film`, compared with

@@ -20,7 +20,9 @@ use lucent_geom::Vec3;
 use lucent_render::{Integrator, RenderSettings, extract, render};
 use lucent_scene::components::{Light, Material, Name};
 use lucent_scene::{Environment, Scene};
+use lucent_shading::EnvironmentMap;
 use lucent_tests::{load_repo_scene, place_scene};
+use std::sync::Arc;
 
 /// Whether the slow sizes are on (`cargo xtask extremes`).
 fn full() -> bool {
@@ -46,15 +48,19 @@ enum Lighting {
     Directional,
     /// The constant background, through the open front.
     Background,
+    /// An HDR environment map (a gradient with a hot spot in front of the
+    /// box), through the open front.
+    Map,
 }
 
 /// Every kind, each a case of the suite.
-const ALL: [Lighting; 5] = [
+const ALL: [Lighting; 6] = [
     Lighting::Area,
     Lighting::Point,
     Lighting::Spot,
     Lighting::Directional,
     Lighting::Background,
+    Lighting::Map,
 ];
 
 /// What lights `scene`, in the order of [`ALL`]. `Light` is matched and
@@ -79,14 +85,23 @@ fn lighting_of(scene: &Scene) -> Vec<Lighting> {
         });
     }
     // `ambient` and `shadowed_ambient` are the Whitted model's; the path
-    // tracer does not read them.
+    // tracer does not read them. A map replaces the background; the
+    // rotation only turns it.
     let Environment {
         background,
+        map,
+        intensity,
+        rotation_deg: _,
         ambient: _,
         shadowed_ambient: _,
-    } = scene.environment;
-    if background.max_element() > 0.0 {
-        found.push(Lighting::Background);
+    } = &scene.environment;
+    match map {
+        Some(m) if *intensity > 0.0 && m.texels().iter().any(|t| t.max_element() > 0.0) => {
+            found.push(Lighting::Map);
+        }
+        Some(_) => {}
+        None if background.max_element() > 0.0 => found.push(Lighting::Background),
+        None => {}
     }
     found.sort_by_key(|k| ALL.iter().position(|a| a == k));
     found.dedup();
@@ -137,6 +152,24 @@ fn cornell_lit_by(kind: Lighting) -> Scene {
             );
         }
         Lighting::Background => scene.environment.background = Vec3::splat(2.0),
+        Lighting::Map => {
+            // 16x9: a dim gradient, and a hot texel near +z (u = 1/2), a
+            // little above the horizon, in front of the open box.
+            let texels = (0..9u32)
+                .flat_map(|y| {
+                    (0..16u32).map(move |x| {
+                        if (x, y) == (7, 3) {
+                            Vec3::new(400.0, 350.0, 300.0)
+                        } else {
+                            Vec3::new(0.2 + 0.05 * x as f32, 0.3, 0.1 * y as f32)
+                        }
+                    })
+                })
+                .collect();
+            let map = EnvironmentMap::new(16, 9, texels).unwrap_or_else(|e| panic!("{e}"));
+            scene.environment.map = Some(Arc::new(map));
+            scene.environment.rotation_deg = 15.0;
+        }
     }
     scene
 }

@@ -3,8 +3,8 @@
 //! Cornell box with the path tracer, and a text snapshot of what the seed
 //! scene loads into.
 
-use lucent_render::{Film, Integrator, Shading, extract};
-use lucent_tests::{assert_image_snapshot, load_repo_scene, render_scene};
+use lucent_render::{Film, Integrator, Shading, Tonemap, extract};
+use lucent_tests::{assert_image_snapshot, film_png_tonemapped, load_repo_scene, render_scene};
 
 /// The seed scene at 128x72, 2 samples per pixel, seed 1.
 fn seed_film(shading: Shading) -> Film {
@@ -59,6 +59,27 @@ fn gltf_pbr_shelf_path() {
         (s.width, s.height, s.spp, s.seed) = (96, 64, 8, 1);
     });
     assert_image_snapshot!("gltf_pbr_shelf_path", &film);
+}
+
+/// The environment-map scene (Royal Esplanade, a diffuse, a rough and a
+/// mirror sphere) at 64x48, 16 samples per pixel, seed 1, through the
+/// filmic tone curve it asks for: the sun's highlights roll off instead of
+/// clipping.
+#[test]
+fn envmap_filmic() {
+    let scene = load_repo_scene("res/scenes/envmap-mitsuba.toml");
+    assert_eq!(scene.settings.tonemap, Tonemap::Filmic);
+    let film = render_scene(&scene, |s| {
+        (s.width, s.height, s.spp, s.seed) = (64, 48, 16, 1);
+    });
+    let stats = film.stats();
+    assert_eq!(stats.n_non_finite, 0);
+    insta::assert_snapshot!("envmap_filmic_stats", stats.to_string());
+    let mut settings = insta::Settings::clone_current();
+    settings.set_comparator(Box::new(lucent_tests::ImageComparator::default()));
+    settings.bind(|| {
+        insta::assert_binary_snapshot!("envmap_filmic.png", film_png_tonemapped(&film, Tonemap::Filmic));
+    });
 }
 
 #[test]

@@ -24,6 +24,7 @@ const TARGETS: &[(&str, &[&str])] = &[
     ("scene", &[]),
     ("texture", &[]),
     ("gltf", &["gltf", "glb"]),
+    ("envmap", &["hdr"]),
 ];
 
 /// Seeds bigger than this are cut (at a line end for text formats), so

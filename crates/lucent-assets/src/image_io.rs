@@ -1,9 +1,10 @@
-//! Texture decoding (PNG, JPEG) into linear RGB, and PNG encoding.
+//! Texture decoding (PNG, JPEG) into linear RGB, environment maps (Radiance
+//! HDR, OpenEXR) in linear RGB, and PNG and EXR encoding.
 
 use crate::{AssetError, AssetSource};
 use image::{DynamicImage, ImageFormat, ImageReader, Limits};
 use lucent_shading::color::srgb_to_linear;
-use lucent_shading::{Texture, Vec3};
+use lucent_shading::{EnvironmentMap, Texture, Vec3};
 use std::io::Cursor;
 use std::path::Path;
 use std::sync::OnceLock;
@@ -70,25 +71,7 @@ pub fn texture_from_bytes_as(bytes: &[u8], path: &Path, space: ColorSpace) -> Re
     let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
         .into_dimensions()
         .map_err(cannot)?;
-    let texels = u64::from(width) * u64::from(height);
-    if width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE || texels > MAX_TEXELS {
-        return Err(AssetError::format(
-            path,
-            format!(
-                "the image is {width}x{height}; textures are at most {MAX_TEXTURE_SIDE} texels on a side \
-                 and {MAX_TEXELS} in all"
-            ),
-        ));
-    }
-    if texels > MAX_TEXELS_PER_BYTE * bytes.len() as u64 {
-        return Err(AssetError::format(
-            path,
-            format!(
-                "the header claims {width}x{height} texels, more than a {}-byte file can hold",
-                bytes.len()
-            ),
-        ));
-    }
+    check_size(bytes, path, width, height, "textures")?;
     // zune-jpeg 0.5.15 (through image) panics on some malformed JPEGs (an
     // IDCT slice out of range, found by fuzzing); a decoder's panic is this
     // file's error, not the program's end.
@@ -154,6 +137,86 @@ pub fn texture_from_bytes_as(bytes: &[u8], path: &Path, space: ColorSpace) -> Re
             .map_err(|e| AssetError::format(path, e.to_string())),
         None => Ok(texture),
     }
+}
+
+/// Loads an equirectangular environment map (Radiance `.hdr` or OpenEXR,
+/// linear RGB) from `path`; see [`environment_map_from_bytes`].
+pub fn load_environment_map(source: &dyn AssetSource, path: &Path) -> Result<(EnvironmentMap, usize), AssetError> {
+    let bytes = source.read(path)?;
+    environment_map_from_bytes(&bytes, path)
+}
+
+/// Decodes an environment map already in memory (Radiance RGBE `.hdr` or
+/// OpenEXR, told apart by their headers); `path` is used in messages only.
+/// Returns the map and how many texels had a NaN, infinite or negative
+/// channel and were set to black (for the caller's warning).
+///
+/// The same size checks as textures apply before decoding: at most
+/// [`MAX_TEXTURE_SIDE`] on a side, [`MAX_TEXELS`] in all and
+/// [`MAX_TEXELS_PER_BYTE`] per byte of `bytes`.
+///
+/// ```
+/// use lucent_assets::{encode_exr, environment_map_from_bytes};
+/// use std::path::Path;
+/// let exr = encode_exr(2, 1, &[1.0, 2.0, 3.0, f32::NAN, 0.0, 0.0])?;
+/// let (map, bad) = environment_map_from_bytes(&exr, Path::new("sky.exr"))?;
+/// assert_eq!((map.width(), map.height(), bad), (2, 1, 1));
+/// # Ok::<(), lucent_assets::AssetError>(())
+/// ```
+pub fn environment_map_from_bytes(bytes: &[u8], path: &Path) -> Result<(EnvironmentMap, usize), AssetError> {
+    let format = image::guess_format(bytes)
+        .map_err(|_| AssetError::format(path, "not a Radiance HDR or OpenEXR image (unrecognised header)"))?;
+    if !matches!(format, ImageFormat::Hdr | ImageFormat::OpenExr) {
+        return Err(AssetError::format(
+            path,
+            format!("{format:?} images are not environment maps (use Radiance .hdr or OpenEXR)"),
+        ));
+    }
+    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
+    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(cannot)?;
+    check_size(bytes, path, width, height, "environment maps")?;
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
+    let img = match decoded {
+        Ok(result) => result.map_err(cannot)?,
+        Err(_) => {
+            return Err(AssetError::format(
+                path,
+                format!("cannot decode image: the {format:?} decoder failed on malformed data"),
+            ));
+        }
+    };
+    let (width, height) = (img.width(), img.height());
+    let mut texels: Vec<Vec3> = img.to_rgb32f().pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+    let bad = EnvironmentMap::sanitize(&mut texels);
+    let map = EnvironmentMap::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))?;
+    Ok((map, bad))
+}
+
+/// Refuses an image whose header claims more texels than the limits, or
+/// than `bytes` can hold.
+fn check_size(bytes: &[u8], path: &Path, width: u32, height: u32, what: &str) -> Result<(), AssetError> {
+    let texels = u64::from(width) * u64::from(height);
+    if width > MAX_TEXTURE_SIDE || height > MAX_TEXTURE_SIDE || texels > MAX_TEXELS {
+        return Err(AssetError::format(
+            path,
+            format!(
+                "the image is {width}x{height}; {what} are at most {MAX_TEXTURE_SIDE} texels on a side \
+                 and {MAX_TEXELS} in all"
+            ),
+        ));
+    }
+    if texels > MAX_TEXELS_PER_BYTE * bytes.len() as u64 {
+        return Err(AssetError::format(
+            path,
+            format!(
+                "the header claims {width}x{height} texels, more than a {}-byte file can hold",
+                bytes.len()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Why a texture could not be loaded, naming the case: the file does not

@@ -7,6 +7,8 @@
 //!   ([`model_scene`]);
 //! - [`load_mesh`] reads one OBJ (with its MTL materials) or PLY file;
 //! - [`load_texture`] decodes PNG/JPEG into linear RGB;
+//! - [`load_environment_map`] decodes an equirectangular Radiance HDR or
+//!   OpenEXR panorama (linear RGB) for the scene's environment;
 //! - [`encode_png`] / [`save_png`] write 8-bit sRGB images, [`encode_exr`] /
 //!   [`save_exr`] linear float OpenEXR images ([`decode_exr`] reads them back);
 //! - [`encode_ply`] / [`save_ply`] write triangle meshes as PLY.
@@ -51,8 +53,9 @@ mod hostile_tests;
 pub use error::{AssetError, LoadReport, Location};
 pub use gltf_load::{GltfOptions, SUPPORTED_EXTENSIONS as GLTF_EXTENSIONS, load_gltf_from};
 pub use image_io::{
-    ColorSpace, MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png, load_texture,
-    save_exr, save_png, texture_from_bytes, texture_from_bytes_as,
+    ColorSpace, MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png,
+    environment_map_from_bytes, load_environment_map, load_texture, save_exr, save_png, texture_from_bytes,
+    texture_from_bytes_as,
 };
 pub use mesh::{MeshPart, load_mesh, load_mesh_from, merged_geometry};
 pub use ply_write::{PlyFormat, encode_ply, save_ply};

@@ -1,7 +1,8 @@
 //! Scene files: parse, load what they refer to, spawn the entities.
 
 use crate::{
-    AssetError, AssetSource, ColorSpace, FileSystem, LoadReport, load_mesh_from, normalize_path, texture_from_bytes_as,
+    AssetError, AssetSource, ColorSpace, FileSystem, LoadReport, load_environment_map, load_mesh_from, normalize_path,
+    texture_from_bytes_as,
 };
 use lucent_geom::{Aabb, Vec3, shapes};
 use lucent_scene::Spanned;
@@ -57,6 +58,7 @@ pub fn load_scene_from(source: &dyn AssetSource, path: &Path) -> Result<(Scene, 
         meshes: HashMap::new(),
     };
     loader.apply_settings();
+    loader.load_environment_map()?;
     loader.spawn_materials()?;
     loader.spawn_objects()?;
     loader.spawn_lights();
@@ -91,10 +93,40 @@ impl Loader<'_> {
         let d = &self.file.desc;
         let env = &mut self.scene.environment;
         env.background = d.environment.background.0;
+        env.intensity = d.environment.intensity;
+        env.rotation_deg = d.environment.rotation_deg;
         env.ambient = d.environment.ambient.0;
         env.shadowed_ambient = d.environment.shadowed_ambient;
         self.scene.settings = RenderSettings::default();
         d.render.apply(&mut self.scene.settings);
+    }
+
+    /// `[environment] map`: decoded once; an unreadable or unusable file is
+    /// an error at the `map` value, bad texels (NaN, infinite, negative) a
+    /// warning that counts them.
+    fn load_environment_map(&mut self) -> Result<(), AssetError> {
+        let Some(map) = &self.file.desc.environment.map else {
+            return Ok(());
+        };
+        let path = normalize_path(&self.file.resolve(map.get_ref()));
+        let (env_map, bad) = load_environment_map(self.source, &path).map_err(|e| {
+            self.file.error_at(
+                map.span(),
+                format!(
+                    "cannot load environment map '{}': {}",
+                    map.get_ref(),
+                    crate::image_io::texture_problem(&e)
+                ),
+            )
+        })?;
+        if bad > 0 {
+            self.report.warn(
+                &path,
+                format!("{bad} texels are NaN, infinite or negative; they are black"),
+            );
+        }
+        self.scene.environment.map = Some(Arc::new(env_map));
+        Ok(())
     }
 
     fn spawn_materials(&mut self) -> Result<(), AssetError> {
@@ -284,7 +316,7 @@ impl Loader<'_> {
             .query::<&Material>()
             .iter()
             .any(|m| m.emission.max_element() > 0.0);
-        if self.file.desc.lights.is_empty() && !emissive {
+        if self.file.desc.lights.is_empty() && !emissive && self.scene.environment.map.is_none() {
             self.report
                 .warn(&self.file.path, "no lights: only ambient light will show");
         }

@@ -3,6 +3,7 @@
 //! This is the only file of the renderer that names hecs. Everything after
 //! it addresses meshes, materials and instances by `u32` index.
 
+use crate::envlight::EnvLight;
 use crate::flat::{FlatBvh, MAX_FLAT_TRIANGLES};
 use crate::lights::{LightSet, emits};
 use lucent_accel::{BuildParams, BuildQuality, Instance, MeshBvh, SceneBvh};
@@ -205,7 +206,8 @@ pub struct RenderScene {
     pub bvh: SceneBvh,
     /// What the scene needs.
     pub features: SceneFeatures,
-    /// Emissive triangles and lights, as the path tracer samples them.
+    /// Emissive triangles, lights and the environment, as the path tracer
+    /// samples them.
     pub light_set: LightSet,
     /// BVH build settings, kept for the lazily built flat tree.
     build: BuildParams,
@@ -328,7 +330,8 @@ pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderSce
     // Without emissive materials there is no per-instance emitter table to
     // build or to consult: the set holds the point and directional lights.
     let emitting: &[RenderInstance] = if features.emissive { &instances } else { &[] };
-    let light_set = LightSet::new(&meshes, &materials, emitting, &lights, scene_radius);
+    let environment = EnvLight::new(&scene.environment);
+    let light_set = LightSet::with_environment(&meshes, &materials, emitting, &lights, environment, scene_radius);
     Ok(RenderScene {
         meshes,
         materials,
@@ -338,7 +341,7 @@ pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderSce
         camera,
         rig,
         origin,
-        environment: scene.environment,
+        environment: scene.environment.clone(),
         bvh,
         features,
         light_set,
@@ -498,6 +501,21 @@ fn intern<T>(
 }
 
 impl RenderScene {
+    /// Turns the environment map to `rotation_deg` about +y without
+    /// re-extracting (the viewer's rotate key).
+    pub fn set_environment_rotation(&mut self, rotation_deg: f32) {
+        self.environment.rotation_deg = rotation_deg;
+        self.light_set.set_environment_rotation(rotation_deg);
+    }
+
+    /// Radiance arriving from the unit direction `dir` from outside the
+    /// scene: the environment map, or the constant background (black when
+    /// neither gives light).
+    #[inline]
+    pub fn environment_radiance(&self, dir: Vec3) -> Vec3 {
+        self.light_set.environment().map_or(Vec3::ZERO, |env| env.eval(dir))
+    }
+
     /// Every instance's triangles in one render-space BVH, which the path
     /// tracer queries instead of the two-level [`RenderScene::bvh`]: built
     /// on the first call (a clone made after that keeps its own copy of the

@@ -2,6 +2,7 @@
 
 use crate::ExactRgb;
 use lucent_geom::{DVec3, Vec3};
+use lucent_scene::Tonemap;
 use lucent_shading::color::linear_to_srgb;
 use std::fmt;
 
@@ -159,11 +160,27 @@ impl Film {
     /// assert_eq!(film.to_srgb8_exposed(0.0), film.to_srgb8());
     /// ```
     pub fn to_srgb8_exposed(&self, exposure_ev: f32) -> Vec<u8> {
+        self.to_srgb8_tonemapped(exposure_ev, Tonemap::Clamp)
+    }
+
+    /// 8-bit sRGB after scaling the radiance by `2^exposure_ev` and mapping
+    /// each channel into [0, 1] with `tonemap` ([`Tonemap::Clamp`] is
+    /// [`Film::to_srgb8_exposed`]). Linear output ([`Film::to_linear_rgb`])
+    /// is never tone mapped.
+    ///
+    /// ```
+    /// use lucent_render::{Film, Tonemap};
+    /// use lucent_geom::Vec3;
+    /// let film = Film::from_pixels(1, 1, vec![Vec3::splat(4.0)]).unwrap_or_else(|| Film::new(1, 1));
+    /// assert_eq!(film.to_srgb8_tonemapped(0.0, Tonemap::Clamp), vec![255; 3]);
+    /// assert!(film.to_srgb8_tonemapped(0.0, Tonemap::Filmic)[0] < 255, "highlights roll off");
+    /// ```
+    pub fn to_srgb8_tonemapped(&self, exposure_ev: f32, tonemap: Tonemap) -> Vec<u8> {
         let k = self.scale() * f64::from(exposure_ev).exp2();
         let mut out = Vec::with_capacity(self.sum.len() * 3);
         for s in &self.sum {
             for c in (s.to_dvec3() * k).as_vec3().to_array() {
-                out.push((linear_to_srgb(c) * 255.0 + 0.5) as u8);
+                out.push((linear_to_srgb(tonemap.apply(c)) * 255.0 + 0.5) as u8);
             }
         }
         out

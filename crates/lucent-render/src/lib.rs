@@ -37,6 +37,7 @@
 #![forbid(unsafe_code)]
 
 mod camera;
+pub mod envlight;
 pub mod exact;
 mod extract;
 mod film;
@@ -59,7 +60,7 @@ pub use extract::{
 };
 pub use film::{Film, ImageStats};
 pub use lucent_accel::BuildQuality;
-pub use lucent_scene::{Integrator, RenderOverrides, RenderSettings, Shading};
+pub use lucent_scene::{Integrator, RenderOverrides, RenderSettings, Shading, Tonemap};
 pub use progressive::{AdaptiveOutput, render_for, render_to_error};
 pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{

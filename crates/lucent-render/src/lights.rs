@@ -1,6 +1,7 @@
 //! The lights the path tracer samples: emissive triangles (area lights, from
 //! materials with `emission`, OBJ `Ke` included), point and directional
-//! lights, chosen in proportion to their power.
+//! lights and the environment ([`EnvLight`]: an HDR map or the constant
+//! background), chosen in proportion to their power.
 //!
 //! An emissive triangle emits its material's `emission` as constant radiance
 //! on one side only: the side its geometric normal points to, oriented to
@@ -14,10 +15,12 @@
 //! point light, `2 pi (1 - cos outer) * luminance(intensity)` for a spot
 //! light and `pi * r^2 * luminance(irradiance)` for a directional light,
 //! `r` being the radius of the scene's bounding sphere. A point is then drawn
-//! uniformly over the chosen triangle's area. The constant background is not
-//! sampled here: paths that leave the scene collect it.
+//! uniformly over the chosen triangle's area. The environment is priced
+//! like a directional light whose irradiance is `pi` times the map's mean
+//! luminance ([`EnvLight::power`]); it is sampled by its own distribution.
 
 use crate::RenderInstance;
+use crate::envlight::EnvLight;
 use crate::interaction::SurfaceInteraction;
 use lucent_accel::SceneHit;
 use lucent_geom::{Ray, TriMesh, Vec2, Vec3, offset_ray_origin_scaled};
@@ -142,8 +145,11 @@ pub struct LightSet {
     /// Cumulative selection probabilities over emitters then lights; the last
     /// entry is 1 (empty when there is nothing to sample).
     cdf: Vec<f32>,
-    /// Selection probability of each emitter then light.
+    /// Selection probability of each emitter then light, then the
+    /// environment.
     prob: Vec<f32>,
+    /// The environment, picked after every emitter and light.
+    environment: Option<EnvLight>,
 }
 
 impl LightSet {
@@ -155,6 +161,18 @@ impl LightSet {
         materials: &[Material],
         instances: &[RenderInstance],
         lights: &[Light],
+        scene_radius: f32,
+    ) -> LightSet {
+        Self::with_environment(meshes, materials, instances, lights, None, scene_radius)
+    }
+
+    /// [`LightSet::new`] plus the environment as a light.
+    pub fn with_environment(
+        meshes: &[Arc<TriMesh>],
+        materials: &[Material],
+        instances: &[RenderInstance],
+        lights: &[Light],
+        environment: Option<EnvLight>,
         scene_radius: f32,
     ) -> LightSet {
         let mut emitters = Vec::new();
@@ -251,6 +269,7 @@ impl LightSet {
                 (None, Light::Directional { intensity, .. }) => std::f32::consts::PI * r * r * lum(intensity).max(0.0),
                 (None, _) => 0.0,
             }))
+            .chain(environment.iter().map(|env| env.power(r)))
             .map(|p| if p.is_finite() { p as f64 } else { 0.0 })
             .collect::<Vec<f64>>();
         let total: f64 = power.iter().sum();
@@ -278,6 +297,7 @@ impl LightSet {
             instance_first,
             cdf,
             prob,
+            environment,
         }
     }
 
@@ -293,6 +313,62 @@ impl LightSet {
             + self.maps.len() * size_of::<Arc<Texture>>()
             + self.instance_first.len() * size_of::<u32>()
             + (self.cdf.len() + self.prob.len()) * size_of::<f32>()
+            + self.environment.as_ref().map_or(0, EnvLight::table_bytes)
+    }
+
+    /// Turns the environment to `rotation_deg` about +y (the viewer's key);
+    /// its selection probability does not depend on the rotation.
+    pub fn set_environment_rotation(&mut self, rotation_deg: f32) {
+        if let Some(env) = &mut self.environment {
+            env.set_rotation(rotation_deg);
+        }
+    }
+
+    /// Stops next-event estimation from picking the environment: paths
+    /// then find it by BSDF sampling alone (weight 1), the other lights
+    /// keep their relative odds. What importance sampling the map buys is
+    /// measured against this (`lucent-tests`' `env_sampling` example).
+    pub fn stop_sampling_environment(&mut self) {
+        let k = self.emitters.len() + self.lights.len();
+        let Some(p_env) = self.prob.get_mut(k).map(std::mem::take) else {
+            return;
+        };
+        let rest = 1.0 - p_env;
+        if rest <= 0.0 {
+            self.cdf.clear();
+            return;
+        }
+        let mut acc = 0.0f32;
+        for (q, c) in self.prob.iter_mut().zip(self.cdf.iter_mut()) {
+            *q /= rest;
+            acc += *q;
+            *c = acc;
+        }
+        if let Some(c) = self.cdf.get_mut(..k).and_then(|c| c.last_mut()) {
+            *c = 1.0;
+        }
+        if let Some(c) = self.cdf.get_mut(k) {
+            *c = 1.0;
+        }
+    }
+
+    /// The environment, when it gives light.
+    #[inline]
+    pub fn environment(&self) -> Option<&EnvLight> {
+        self.environment.as_ref()
+    }
+
+    /// Solid-angle density with which [`LightSet::sample`] picks the
+    /// environment in direction `dir`, its selection probability included.
+    #[inline]
+    pub fn pdf_environment(&self, dir: Vec3) -> f32 {
+        let (Some(env), Some(&p)) = (
+            &self.environment,
+            self.prob.get(self.emitters.len() + self.lights.len()),
+        ) else {
+            return 0.0;
+        };
+        p * env.pdf(dir)
     }
 
     /// The emissive triangles.
@@ -393,7 +469,19 @@ impl LightSet {
                 delta: false,
             });
         }
-        let light = self.lights.get(idx - self.emitters.len())?;
+        let Some(light) = self.lights.get(idx - self.emitters.len()) else {
+            let s = self.environment.as_ref()?.sample(u)?;
+            return Some(LightSample {
+                wi: s.wi,
+                distance: f32::INFINITY,
+                point: from + s.wi * f32::MAX,
+                normal: Vec3::ZERO,
+                magnitude: 0.0,
+                value: s.radiance,
+                pdf: p * s.pdf,
+                delta: false,
+            });
+        };
         let s = light.sample(from)?;
         Some(LightSample {
             wi: s.to_light,

@@ -18,8 +18,10 @@
 //!   crossed, which undoes the radiance scaling of refraction), as Mitsuba
 //!   does with its `rr_depth`.
 //!
-//! Rays that leave the scene collect the constant background (it is not
-//! sampled as a light). `max_depth` is Mitsuba's: the longest path counted
+//! The environment (an HDR map or the constant background) is a light like
+//! the others: next-event estimation samples it by its own distribution
+//! ([`crate::envlight`]), and rays that leave the scene collect it,
+//! weighted against that by the power heuristic. `max_depth` is Mitsuba's: the longest path counted
 //! in segments from the camera, so 0 renders black, 1 shows only emitters
 //! seen directly and 2 adds direct light. Materials give their BSDF through
 //! `Material::bsdf_at` (the report's terms with the texture colour and
@@ -112,7 +114,15 @@ impl<'a> PathTracer<'a> {
         let mut depth = 0u32;
         loop {
             let Some(sh) = self.intersect(&ray) else {
-                radiance += throughput * scene.environment.background;
+                if let Some(env) = lights.environment() {
+                    let le = env.eval(ray.dir);
+                    let w = if prev_delta {
+                        1.0
+                    } else {
+                        power_heuristic(prev_pdf, lights.pdf_environment(ray.dir))
+                    };
+                    radiance += throughput * le * w;
+                }
                 break;
             };
             let Some(hit) = SurfaceInteraction::from_hit::<false>(&scene.meshes, &scene.instances, &sh) else {
@@ -158,8 +168,7 @@ impl<'a> PathTracer<'a> {
                     if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
                         && !self.occluded(&shadow_ray, t_max)
                     {
-                        // Without emitters every light is a delta light.
-                        let w = if !EMISSIVE || ls.delta {
+                        let w = if ls.delta {
                             1.0
                         } else {
                             power_heuristic(ls.pdf, bsdf.pdf(wo, wi))

@@ -23,6 +23,10 @@
 //!   `min_weight` (S11). Refraction follows Snell's law with the material's
 //!   index of refraction; total internal reflection sends the transmitted
 //!   share back along the mirror direction.
+//! - A ray that leaves the scene sees the environment: the HDR map in its
+//!   direction (so mirrors and glass show it), or the constant background.
+//!   The map lights nothing else here: the report's model has no
+//!   environment lighting, and `ambient` stays the scene's own term.
 //!
 //! The tracer is specialised on the scene's
 //! [`SceneFeatures`](crate::SceneFeatures), picked once per camera ray:
@@ -87,7 +91,7 @@ impl<'a> Whitted<'a> {
         stats: &mut RayStats,
     ) -> Vec3 {
         let Some(hit) = self.scene.bvh.intersect(ray, f32::INFINITY) else {
-            return self.scene.environment.background;
+            return self.scene.environment_radiance(ray.dir);
         };
         let scene = self.scene;
         // The report's model shades with the normals facing the ray.

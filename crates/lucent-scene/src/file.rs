@@ -98,6 +98,18 @@ impl SceneFile {
 
     fn validate(&self) -> Result<(), SceneFileError> {
         let d = &self.desc;
+        if let Some(map) = &d.environment.map {
+            let ext = Path::new(map.get_ref())
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase);
+            if !matches!(ext.as_deref(), Some("hdr" | "exr")) {
+                return Err(self.error_at(
+                    map.span(),
+                    format!("environment map '{}' is neither .hdr nor .exr", map.get_ref()),
+                ));
+            }
+        }
         for obj in &d.objects {
             let span = obj.span();
             let o = obj.get_ref();
@@ -176,8 +188,17 @@ pub struct SceneDesc {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct EnvironmentDesc {
-    /// Colour of rays that leave the scene.
+    /// Colour of rays that leave the scene (when there is no `map`).
     pub background: Color,
+    /// An equirectangular HDR panorama (`.hdr` Radiance RGBE or `.exr`),
+    /// relative to the scene file; replaces `background`.
+    pub map: Option<Spanned<String>>,
+    /// Scale of the map's radiance (at least 0).
+    #[serde(deserialize_with = "non_negative")]
+    pub intensity: f32,
+    /// Rotation of the map about +y, in degrees.
+    #[serde(deserialize_with = "finite")]
+    pub rotation_deg: f32,
     /// Ambient light Ia.
     pub ambient: Color,
     /// Whether shadows darken the ambient term (the report's black shadows).
@@ -189,6 +210,9 @@ impl Default for EnvironmentDesc {
         let e = crate::Environment::default();
         Self {
             background: Color(e.background),
+            map: None,
+            intensity: e.intensity,
+            rotation_deg: e.rotation_deg,
             ambient: Color(e.ambient),
             shadowed_ambient: e.shadowed_ambient,
         }

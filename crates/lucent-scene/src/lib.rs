@@ -48,7 +48,7 @@ pub use file::{
 };
 pub use hecs;
 pub use scene::{EntityCounts, Environment, Scene};
-pub use settings::{Integrator, RenderOverrides, RenderSettings, Shading};
+pub use settings::{Integrator, RenderOverrides, RenderSettings, Shading, Tonemap};
 /// A value with its byte range in the scene file's text (from toml).
 pub use toml::Spanned;
 pub use transform::world_from_local;

@@ -4,13 +4,25 @@ use crate::RenderSettings;
 use crate::components::{Camera, Light, Material, MaterialRef, Mesh, MeshRef, Name, OrbitRig, Transform};
 use hecs::{Entity, World};
 use lucent_geom::{Affine3A, TriMesh, Vec3};
+use lucent_shading::EnvironmentMap;
 use std::sync::Arc;
 
 /// Light and colour that belong to the whole scene rather than to an entity.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Environment {
-    /// Radiance of rays that leave the scene (linear RGB).
+    /// Radiance of rays that leave the scene (linear RGB) when there is no
+    /// `map`: a constant environment, which the path tracer samples as a
+    /// light (the one-texel map).
     pub background: Vec3,
+    /// An HDR panorama of the radiance arriving from every direction
+    /// (equirectangular, Mitsuba's convention; see
+    /// [`lucent_shading::environment`]). When set it replaces `background`.
+    pub map: Option<Arc<EnvironmentMap>>,
+    /// Scale of the map's radiance.
+    pub intensity: f32,
+    /// Rotation of the map about +y in degrees (right-handed: positive turns
+    /// +z towards +x), Mitsuba's `to_world` rotation about y.
+    pub rotation_deg: f32,
     /// The report's ambient light Ia.
     pub ambient: Vec3,
     /// Report semantics: shadow rays also darken the ambient term, so opaque
@@ -22,6 +34,9 @@ impl Default for Environment {
     fn default() -> Self {
         Self {
             background: Vec3::ZERO,
+            map: None,
+            intensity: 1.0,
+            rotation_deg: 0.0,
             ambient: Vec3::splat(0.2),
             shadowed_ambient: true,
         }

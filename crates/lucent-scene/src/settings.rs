@@ -15,6 +15,7 @@
 
 use crate::file::{depth, image_size, named, rr_depth, spp, unit_interval};
 use lucent_geom::Named;
+use lucent_shading::color::aces_filmic;
 use serde::Deserialize;
 
 /// How the Whitted integrator evaluates the Phong model.
@@ -48,6 +49,52 @@ impl Named for Integrator {
     const NAMES: &'static [(&'static str, Self)] = &[("whitted", Integrator::Whitted), ("path", Integrator::Path)];
 }
 
+/// How linear radiance becomes a displayable value in [0, 1], after the
+/// exposure and before sRGB encoding. EXR output is never tone mapped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Tonemap {
+    /// Clip each channel to [0, 1] (bright areas burn out).
+    #[default]
+    Clamp,
+    /// The ACES filmic fit ([`aces_filmic`]): highlights roll off smoothly.
+    Filmic,
+}
+
+impl Named for Tonemap {
+    const NAMES: &'static [(&'static str, Self)] = &[("clamp", Tonemap::Clamp), ("filmic", Tonemap::Filmic)];
+}
+
+impl Tonemap {
+    /// The other curve (the viewer's toggle key).
+    pub fn next(self) -> Tonemap {
+        match self {
+            Tonemap::Clamp => Tonemap::Filmic,
+            Tonemap::Filmic => Tonemap::Clamp,
+        }
+    }
+
+    /// Maps one linear (already exposed) channel into [0, 1]; NaN gives 0.
+    ///
+    /// ```
+    /// use lucent_scene::Tonemap;
+    /// assert_eq!(Tonemap::Clamp.apply(3.0), 1.0);
+    /// assert!(Tonemap::Filmic.apply(3.0) < 1.0);
+    /// ```
+    #[inline]
+    pub fn apply(self, c: f32) -> f32 {
+        match self {
+            Tonemap::Clamp => {
+                if c.is_nan() {
+                    0.0
+                } else {
+                    c.clamp(0.0, 1.0)
+                }
+            }
+            Tonemap::Filmic => aces_filmic(c),
+        }
+    }
+}
+
 /// Image and quality settings for a render.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -76,6 +123,8 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Whitted (the report's model) or path tracing.
     pub integrator: Integrator,
+    /// Tone curve of 8-bit output (PNG, the viewer).
+    pub tonemap: Tonemap,
 }
 
 impl Default for RenderSettings {
@@ -90,6 +139,7 @@ impl Default for RenderSettings {
             shading: Shading::Gouraud,
             seed: 0,
             integrator: Integrator::Whitted,
+            tonemap: Tonemap::Clamp,
         }
     }
 }
@@ -136,6 +186,9 @@ pub struct RenderOverrides {
     /// `"whitted"` or `"path"`.
     #[serde(default, deserialize_with = "named")]
     pub integrator: Option<Integrator>,
+    /// `"clamp"` or `"filmic"`: the tone curve of 8-bit output.
+    #[serde(default, deserialize_with = "named")]
+    pub tonemap: Option<Tonemap>,
 }
 
 impl RenderOverrides {
@@ -150,6 +203,7 @@ impl RenderOverrides {
         shading: None,
         seed: None,
         integrator: None,
+        tonemap: None,
     };
 
     /// Writes every setting that is `Some` into `settings`.
@@ -169,6 +223,7 @@ impl RenderOverrides {
         set(&mut s.shading, self.shading);
         set(&mut s.seed, self.seed);
         set(&mut s.integrator, self.integrator);
+        set(&mut s.tonemap, self.tonemap);
     }
 }
 
@@ -180,6 +235,7 @@ mod tests {
     fn every_setting_enum_has_one_name_per_value() {
         lucent_geom::assert_table(&[Shading::Gouraud, Shading::Phong]);
         lucent_geom::assert_table(&[Integrator::Whitted, Integrator::Path]);
+        lucent_geom::assert_table(&[Tonemap::Clamp, Tonemap::Filmic]);
     }
 
     #[test]
@@ -201,6 +257,7 @@ mod tests {
             shading: Some(Shading::Phong),
             seed: Some(7),
             integrator: Some(Integrator::Path),
+            tonemap: Some(Tonemap::Filmic),
         };
         all.apply(&mut s);
         let want = RenderSettings {
@@ -213,6 +270,7 @@ mod tests {
             shading: Shading::Phong,
             seed: 7,
             integrator: Integrator::Path,
+            tonemap: Tonemap::Filmic,
         };
         assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
     }

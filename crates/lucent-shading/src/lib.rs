@@ -11,7 +11,10 @@
 //!   point and spot lights.
 //! - [`phong`]: the report's Phong model (S9) split into per-light terms so
 //!   that it can be evaluated at vertices (Gouraud, S10) or per pixel.
-//! - [`color`]: the sRGB transfer function, both ways.
+//! - [`color`]: the sRGB transfer function, both ways, and the filmic tone
+//!   curve.
+//! - [`EnvironmentMap`]: an equirectangular HDR panorama in Mitsuba's
+//!   convention ([`environment`]), bilinear lookups by direction.
 //! - [`optics`]: mirror reflection, Snell refraction with total internal
 //!   reflection, and the exact dielectric Fresnel reflectance.
 //! - [`bsdf`]: the path tracer's physically based scattering ([`Bsdf`]:
@@ -33,6 +36,7 @@
 
 pub mod bsdf;
 pub mod color;
+pub mod environment;
 mod light;
 mod material;
 pub mod optics;
@@ -40,6 +44,7 @@ pub mod phong;
 mod texture;
 
 pub use bsdf::{Bsdf, BsdfSample, Frame};
+pub use environment::{EnvironmentMap, EnvironmentMapError};
 pub use light::{Light, LightSample};
 pub use lucent_geom::{Vec2, Vec3};
 pub use material::{AlphaMode, Material, MetallicRoughness};

@@ -21,7 +21,7 @@ use lucent_assets::LoadReport;
 use lucent_geom::Named;
 use lucent_render::quality::{self, QualityPreset};
 use lucent_render::{ExtractOptions, RenderOverrides};
-use lucent_scene::{Integrator, Scene, Shading};
+use lucent_scene::{Integrator, Scene, Shading, Tonemap};
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -128,6 +128,10 @@ struct QualityArgs {
     /// Light transport: the report's Whitted model or path tracing.
     #[arg(long, value_name = "NAME", value_parser = named::<Integrator>())]
     integrator: Option<Integrator>,
+    /// Tone curve of 8-bit output: clamp (clip at 1) or filmic (ACES fit,
+    /// highlights roll off). EXR output stays linear.
+    #[arg(long, value_name = "NAME", value_parser = named::<Tonemap>())]
+    tonemap: Option<Tonemap>,
 }
 
 impl QualityArgs {
@@ -157,6 +161,7 @@ impl QualityArgs {
             shading: self.shading,
             seed: self.seed,
             integrator: self.integrator,
+            tonemap: self.tonemap,
             ..RenderOverrides::NONE
         }
     }

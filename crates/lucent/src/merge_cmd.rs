@@ -6,7 +6,9 @@
 use crate::{check_exr_path, check_png_path};
 use anyhow::{Context, Result};
 use clap::Args;
+use lucent_geom::Named;
 use lucent_render::partial::Merger;
+use lucent_scene::Tonemap;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -25,6 +27,20 @@ pub struct MergeArgs {
     /// Exposure of the PNG in stops, as `lucent render --exposure`.
     #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::render_cmd::parse_ev)]
     exposure: f32,
+    /// Tone curve of the PNG (clamp or filmic); by default the one the parts
+    /// were rendered with, as `lucent render` would have written it.
+    #[arg(long, value_name = "NAME", value_parser = crate::named::<Tonemap>())]
+    tonemap: Option<Tonemap>,
+}
+
+/// The tone curve recorded in a partial header's settings text (the
+/// `RenderSettings` debug form that `farm::settings_text` writes).
+fn recorded_tonemap(settings_text: &str) -> Tonemap {
+    Tonemap::NAMES
+        .iter()
+        .map(|&(_, t)| t)
+        .find(|t| settings_text.contains(&format!("tonemap: {t:?}")))
+        .unwrap_or_default()
 }
 
 pub fn run(args: MergeArgs) -> Result<()> {
@@ -45,8 +61,9 @@ pub fn run(args: MergeArgs) -> Result<()> {
     let (header, film) = merger.finish()?;
     let read_s = start.elapsed().as_secs_f64();
     let (w, h) = (film.width(), film.height());
+    let tonemap = args.tonemap.unwrap_or_else(|| recorded_tonemap(&header.settings));
     if let Some(png) = &args.output {
-        lucent_assets::save_png(png, w, h, &film.to_srgb8_exposed(args.exposure))?;
+        lucent_assets::save_png(png, w, h, &film.to_srgb8_tonemapped(args.exposure, tonemap))?;
     }
     if let Some(exr) = &args.exr {
         lucent_assets::save_exr(exr, w, h, &film.to_linear_rgb())?;
@@ -65,4 +82,22 @@ pub fn run(args: MergeArgs) -> Result<()> {
         start.elapsed().as_secs_f64(),
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lucent_render::{ExtractOptions, RenderSettings};
+
+    #[test]
+    fn the_recorded_tone_curve_is_read_back_from_the_settings_text() {
+        for &(_, t) in Tonemap::NAMES {
+            let settings = RenderSettings {
+                tonemap: t,
+                ..RenderSettings::default()
+            };
+            let text = crate::farm::settings_text(&settings, &ExtractOptions::default());
+            assert_eq!(recorded_tonemap(&text), t, "{text}");
+        }
+    }
 }

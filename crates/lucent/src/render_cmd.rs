@@ -22,10 +22,11 @@ pub struct RenderArgs {
     /// seed scene when omitted; a model gets a camera, lighting and the path
     /// tracer around it.
     pub(crate) scene: Option<PathBuf>,
-    /// Output PNG file: radiance times 2^exposure, clamped to [0, 1], sRGB, 8 bits.
+    /// Output PNG file: radiance times 2^exposure, tone mapped into [0, 1]
+    /// (--tonemap, clamp by default), sRGB, 8 bits.
     #[arg(short, long, value_name = "FILE.png", required_unless_present_any = ["exr", "partial"])]
     pub(crate) output: Option<PathBuf>,
-    /// Output linear EXR file (32-bit float radiance, no exposure, no clamp).
+    /// Output linear EXR file (32-bit float radiance, no exposure, no tone curve).
     #[arg(long, value_name = "FILE.exr")]
     pub(crate) exr: Option<PathBuf>,
     /// Exposure of the PNG in stops (EV): radiance is scaled by 2^EV first.
@@ -127,7 +128,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     })??;
     let (w, h) = (out.film.width(), out.film.height());
     if let Some(png) = &args.output {
-        lucent_assets::save_png(png, w, h, &out.film.to_srgb8_exposed(args.exposure))?;
+        lucent_assets::save_png(
+            png,
+            w,
+            h,
+            &out.film.to_srgb8_tonemapped(args.exposure, settings.tonemap),
+        )?;
     }
     if let Some(exr) = &args.exr {
         lucent_assets::save_exr(exr, w, h, &out.film.to_linear_rgb())?;

@@ -195,3 +195,109 @@ material = "plain"
     let bad = load("[materials.m]\nmetallic = 2.0\n").map(|_| ());
     assert!(bad.as_ref().is_err_and(|e| e.contains("between 0 and 1")), "{bad:?}");
 }
+
+/// A 4x2 Radiance RGBE file (flat, not run-length encoded) whose first texel
+/// is `first` (mantissas and exponent) and the rest mid-grey.
+fn hdr_file(first: [u8; 4]) -> Vec<u8> {
+    let mut f = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n".to_vec();
+    f.extend_from_slice(&first);
+    for _ in 1..8 {
+        f.extend_from_slice(&[128, 128, 128, 128]);
+    }
+    f
+}
+
+fn load_with_map(
+    scene_text: &'static str,
+    map_name: &'static str,
+    map: Vec<u8>,
+) -> Result<(Scene, LoadReport), String> {
+    let src = MemorySource::new()
+        .with_file("scenes/s.toml", scene_text.as_bytes())
+        .with_file(map_name, map);
+    load_scene_from(&src, Path::new("scenes/s.toml")).map_err(|e| e.to_string())
+}
+
+#[test]
+fn environment_maps_load_with_their_settings() {
+    let text = "[environment]\nmap = \"../sky/a.hdr\"\nintensity = 3\nrotation_deg = 45\n";
+    let (scene, report) =
+        load_with_map(text, "sky/a.hdr", hdr_file([128, 64, 32, 129])).unwrap_or_else(|e| panic!("{e}"));
+    let env = &scene.environment;
+    let Some(map) = &env.map else { panic!("no map") };
+    assert_eq!((map.width(), map.height()), (4, 2));
+    // RGBE (128, 64, 32, 129): mantissa / 256 * 2^(129 - 128).
+    assert_eq!(map.texel(0, 0), lucent_geom::Vec3::new(1.0, 0.5, 0.25));
+    assert_eq!(map.texel(1, 1), lucent_geom::Vec3::splat(0.5));
+    assert_eq!((env.intensity, env.rotation_deg), (3.0, 45.0));
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+}
+
+#[test]
+fn bad_environment_maps_are_errors_naming_the_file() {
+    let text = "[environment]\nmap = \"sky.hdr\"\n";
+    let missing = load(text).err().unwrap_or_default();
+    assert!(
+        missing.starts_with("scenes/s.toml:2:7: cannot load environment map 'sky.hdr': scenes/sky.hdr does not exist"),
+        "{missing}"
+    );
+    let not_image = load_with_map(text, "scenes/sky.hdr", b"hello".to_vec())
+        .err()
+        .unwrap_or_default();
+    assert!(
+        not_image.contains("scenes/sky.hdr is not a usable image (not a Radiance HDR or OpenEXR image"),
+        "{not_image}"
+    );
+    let png = crate::encode_png(1, 1, &[1, 2, 3]).unwrap_or_default();
+    let wrong = load_with_map(text, "scenes/sky.hdr", png).err().unwrap_or_default();
+    assert!(wrong.contains("Png images are not environment maps"), "{wrong}");
+    let huge = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 20000 +X 20000\n".to_vec();
+    let huge = load_with_map(text, "scenes/sky.hdr", huge).err().unwrap_or_default();
+    assert!(
+        huge.contains("the image is 20000x20000; environment maps are at most"),
+        "{huge}"
+    );
+    let truncated = hdr_file([1, 1, 1, 128]);
+    let truncated = load_with_map(text, "scenes/sky.hdr", truncated[..truncated.len() - 9].to_vec())
+        .err()
+        .unwrap_or_default();
+    assert!(truncated.contains("cannot decode image"), "{truncated}");
+}
+
+#[test]
+fn non_finite_and_negative_texels_become_black_with_a_warning() {
+    // An EXR with a NaN, an infinite and a negative texel.
+    let rgb = [
+        1.0,
+        1.0,
+        1.0,
+        f32::NAN,
+        0.0,
+        0.0,
+        f32::INFINITY,
+        1.0,
+        1.0,
+        -2.0,
+        0.5,
+        0.5,
+    ];
+    let exr = crate::encode_exr(2, 2, &rgb).unwrap_or_default();
+    let text = "[environment]\nmap = \"sky.exr\"\n";
+    let (scene, report) = load_with_map(text, "scenes/sky.exr", exr).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        report.warnings,
+        ["scenes/sky.exr: 3 texels are NaN, infinite or negative; they are black"]
+    );
+    let Some(map) = &scene.environment.map else {
+        panic!("no map")
+    };
+    assert_eq!(
+        map.texels(),
+        [
+            lucent_geom::Vec3::ONE,
+            lucent_geom::Vec3::ZERO,
+            lucent_geom::Vec3::ZERO,
+            lucent_geom::Vec3::ZERO
+        ]
+    );
+}

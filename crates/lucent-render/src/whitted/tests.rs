@@ -27,6 +27,7 @@ fn floor_and_box(box_material: Material) -> Scene {
             background: Vec3::ZERO,
             ambient: Vec3::splat(0.2),
             shadowed_ambient: true,
+            ..Environment::default()
         },
         ..Scene::default()
     };

@@ -211,3 +211,25 @@ fn columns_count_characters_not_bytes() {
     // An offset inside a character counts from that character.
     assert_eq!(line_column("aé\nxé€y", 9), (2, 3));
 }
+
+#[test]
+fn environment_maps_and_tone_curves_parse_and_are_checked() {
+    let text =
+        "[environment]\nmap = \"sky.hdr\"\nintensity = 2.0\nrotation_deg = -90\n[render]\ntonemap = \"filmic\"\n";
+    let f = parse(text).unwrap_or_else(|e| panic!("{e}"));
+    let env = &f.desc.environment;
+    assert_eq!(env.map.as_ref().map(|m| m.get_ref().as_str()), Some("sky.hdr"));
+    assert_eq!((env.intensity, env.rotation_deg), (2.0, -90.0));
+    assert_eq!(f.desc.render.tonemap, Some(crate::Tonemap::Filmic));
+    let d = parse("").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        (d.desc.environment.intensity, d.desc.environment.rotation_deg),
+        (1.0, 0.0)
+    );
+    assert_eq!(
+        check_err("[environment]\nmap = \"sky.png\"\n"),
+        "2:7: environment map 'sky.png' is neither .hdr nor .exr"
+    );
+    assert!(check_err("[environment]\nintensity = -1\n").starts_with("2:13: "));
+    assert!(check_err("[render]\ntonemap = \"reinhard\"\n").starts_with("2:11: "));
+}

@@ -18,6 +18,10 @@ pub struct FrameInput {
     pub toggle_shading: bool,
     /// Switch integrator.
     pub toggle_integrator: bool,
+    /// Switch the tone curve (clamp / filmic).
+    pub toggle_tonemap: bool,
+    /// Turn the environment map a step about +y.
+    pub turn_environment: bool,
     /// Save a screenshot.
     pub screenshot: bool,
     /// Leave the viewer.
@@ -72,6 +76,8 @@ impl WindowInput {
             preset,
             toggle_shading: pressed(&[Key::G]),
             toggle_integrator: pressed(&[Key::I]),
+            toggle_tonemap: pressed(&[Key::T]),
+            turn_environment: pressed(&[Key::E]),
             screenshot: pressed(&[Key::P]),
             quit: down(&[Key::Escape]) || !window.is_open(),
         }
@@ -160,6 +166,8 @@ impl ScriptedInput {
             preset,
             toggle_shading: self.chance(0.003),
             toggle_integrator: self.chance(0.002),
+            toggle_tonemap: self.chance(0.002),
+            turn_environment: self.chance(0.002),
             screenshot: false,
             quit: false,
         }

@@ -42,6 +42,8 @@ pub const CONTROLS: &str = "Controls:
   F1-F4 or 1-4        quality preset: preview, interactive, final, reference
   G                   switch Gouraud / per-pixel Phong shading
   I                   switch integrator: the report's Whitted model / path tracing
+  E                   turn the environment map 15 degrees about the vertical
+  T                   switch tone curve: clamp / filmic (ACES fit; highlights roll off)
   P                   save a screenshot (lucent-<unix ms>.png in the current directory)
   Esc                 quit
 
@@ -55,6 +57,9 @@ switch shading and integrator until the next preset key; explicit flags
 moves, frames are rendered at the resolution that fits the preset's frame
 budget; when it stops, the image refines at the preset's resolution up to
 its samples per pixel (or --max-spp).";
+
+/// Degrees one press of E turns the environment map.
+const ENV_TURN_STEP_DEG: f32 = 15.0;
 
 /// Arguments of `lucent view`.
 #[derive(Args, Debug, Default)]
@@ -297,6 +302,8 @@ struct ViewState {
     max_spp: Option<u32>,
     target_fps: Option<f32>,
     generation: u64,
+    /// Degrees the E key has turned the environment map.
+    env_turn_deg: f32,
     moving: bool,
     /// A key or button was held in the previous input frame.
     was_holding: bool,
@@ -314,6 +321,7 @@ impl ViewState {
             max_spp: args.max_spp,
             target_fps: args.target_fps,
             generation: 1,
+            env_turn_deg: 0.0,
             moving: false,
             was_holding: false,
             last_change: now,
@@ -344,6 +352,14 @@ impl ViewState {
                 Shading::Gouraud => Shading::Phong,
                 Shading::Phong => Shading::Gouraud,
             };
+            changed_settings = true;
+        }
+        if input.turn_environment {
+            self.env_turn_deg = (self.env_turn_deg + ENV_TURN_STEP_DEG).rem_euclid(360.0);
+            changed_settings = true;
+        }
+        if input.toggle_tonemap {
+            self.settings.tonemap = self.settings.tonemap.next();
             changed_settings = true;
         }
         if input.toggle_integrator {
@@ -397,6 +413,7 @@ impl ViewState {
             still_scale: 1.0 / resolution_scale,
             // The preset's samples, or the scene's without one.
             max_spp: self.max_spp.unwrap_or(self.settings.spp),
+            env_turn_deg: self.env_turn_deg,
         }
     }
 

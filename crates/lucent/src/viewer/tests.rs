@@ -242,3 +242,29 @@ fn a_frame_refined_to_the_cap_of_the_current_request_is_finished() {
     let g = v.request().generation;
     assert!(!v.is_finished(&frame(g, 4, true)));
 }
+
+#[test]
+fn tone_curve_and_environment_keys_restart_accumulation() {
+    let t0 = Instant::now();
+    let mut v = view(&ViewArgs::default(), t0);
+    let g = v.request().generation;
+    let tonemap = FrameInput {
+        toggle_tonemap: true,
+        ..FrameInput::default()
+    };
+    assert!(v.apply(&tonemap, t0));
+    assert_eq!(v.request().settings.tonemap, lucent_render::Tonemap::Filmic);
+    assert_eq!(v.request().generation, g + 1);
+    assert!(v.apply(&tonemap, t0));
+    assert_eq!(v.request().settings.tonemap, lucent_render::Tonemap::Clamp);
+    let turn = FrameInput {
+        turn_environment: true,
+        ..FrameInput::default()
+    };
+    for k in 1..=24 {
+        assert!(v.apply(&turn, t0));
+        assert_eq!(v.request().env_turn_deg, (15.0 * k as f32) % 360.0);
+    }
+    let r = v.request();
+    assert!(!r.moving && r.generation == g + 26);
+}

@@ -13,7 +13,7 @@
 //! full-resolution pass it delays is what the user waits for); a cancelled
 //! pass is never shown.
 
-use lucent_render::{Film, RenderScene, RenderSettings, render_samples_cancellable};
+use lucent_render::{Film, RenderScene, RenderSettings, Tonemap, render_samples_cancellable};
 use lucent_scene::components::OrbitRig;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
@@ -41,6 +41,9 @@ pub struct Request {
     pub still_scale: f32,
     /// Samples per pixel to accumulate while still.
     pub max_spp: u32,
+    /// Degrees the environment map is turned about +y beyond the scene's
+    /// own `rotation_deg` (the viewer's E key).
+    pub env_turn_deg: f32,
 }
 
 /// A finished image, upscaled to the window.
@@ -263,6 +266,8 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
     let mut costs = CostModel::default();
     let mut film: Option<(u64, Film)> = None;
     let mut previewed: Option<u64> = None;
+    let base_rotation = scene.environment.rotation_deg;
+    let mut turned = 0.0f32;
     loop {
         let job = {
             let mut state = shared.lock();
@@ -288,6 +293,11 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
             }
         };
+        let (Job::Preview(r) | Job::Refine(r)) = &job;
+        if r.env_turn_deg != turned {
+            turned = r.env_turn_deg;
+            scene.set_environment_rotation(base_rotation + turned);
+        }
         let frame = match job {
             Job::Preview(r) => {
                 previewed = Some(r.generation);
@@ -318,7 +328,7 @@ fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &Ato
     render_samples_cancellable(scene, &r.settings, &mut film, 0..spp, cancel)?;
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(u64::from(pw) * u64::from(ph) * u64::from(spp), render_s);
-    let (pixels, output_s) = output(&film, w, h, costs);
+    let (pixels, output_s) = output(&film, w, h, r.settings.tonemap, costs);
     Some(Frame {
         generation: r.generation,
         rig: r.rig,
@@ -359,7 +369,7 @@ fn refine(
     }
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(u64::from(rw) * u64::from(rh) * u64::from(k), render_s);
-    let (pixels, output_s) = output(f, w, h, costs);
+    let (pixels, output_s) = output(f, w, h, r.settings.tonemap, costs);
     Some(Frame {
         generation: r.generation,
         rig: r.rig,
@@ -384,19 +394,19 @@ fn scaled_size(width: u32, height: u32, scale: f32) -> (u32, u32) {
 
 /// Converts a film to window pixels (nearest film pixel); returns them and
 /// the seconds it took.
-fn output(film: &Film, width: u32, height: u32, costs: &mut CostModel) -> (Vec<u32>, f32) {
+fn output(film: &Film, width: u32, height: u32, tonemap: Tonemap, costs: &mut CostModel) -> (Vec<u32>, f32) {
     let start = Instant::now();
     let mut pixels = vec![0; width as usize * height as usize];
-    upscale(film, &mut pixels, width);
+    upscale(film, &mut pixels, width, tonemap);
     let output_s = start.elapsed().as_secs_f32();
     costs.observe_output(pixels.len() as u64, output_s);
     (pixels, output_s)
 }
 
-/// Fills `buffer` (0RGB, `buffer_width` wide) with `film`, each window
-/// pixel taking the film pixel it falls in.
-pub fn upscale(film: &Film, buffer: &mut [u32], buffer_width: u32) {
-    let srgb = film.to_srgb8();
+/// Fills `buffer` (0RGB, `buffer_width` wide) with `film` through the tone
+/// curve `tonemap`, each window pixel taking the film pixel it falls in.
+pub fn upscale(film: &Film, buffer: &mut [u32], buffer_width: u32, tonemap: Tonemap) {
+    let srgb = film.to_srgb8_tonemapped(0.0, tonemap);
     let (fw, fh) = (film.width() as usize, film.height() as usize);
     let bw = buffer_width.max(1) as usize;
     let bh = buffer.len() / bw;

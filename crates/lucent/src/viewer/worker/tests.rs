@@ -27,6 +27,7 @@ fn request(generation: u64, moving: bool, max_spp: u32) -> Request {
         max_scale: 4.0,
         still_scale: 1.0,
         max_spp,
+        env_turn_deg: 0.0,
     }
 }
 
@@ -153,7 +154,7 @@ fn new_generations_restart_accumulation_and_no_older_frame_follows_a_newer() {
             let mut fresh = Film::new(320, 180);
             render_samples(&rs, &last.settings, &mut fresh, 0..f.samples, &|_| {});
             let mut expected = vec![0; 320 * 180];
-            upscale(&fresh, &mut expected, 320);
+            upscale(&fresh, &mut expected, 320, Tonemap::Clamp);
             assert!(f.refined && f.pixels == expected);
             break;
         }
@@ -172,7 +173,7 @@ fn new_generations_restart_accumulation_and_no_older_frame_follows_a_newer() {
 fn upscale_repeats_film_pixels_in_blocks() {
     let film = Film::from_pixels(2, 1, vec![Vec3::X, Vec3::Z]).unwrap();
     let mut buffer = vec![0u32; 4 * 2];
-    upscale(&film, &mut buffer, 4);
+    upscale(&film, &mut buffer, 4, Tonemap::Clamp);
     let (red, blue) = (0x00ff_0000, 0x0000_00ff);
     assert_eq!(buffer, vec![red, red, blue, blue, red, red, blue, blue]);
 }
