@@ -44,8 +44,8 @@ mod hostile_tests;
 
 pub use error::{AssetError, LoadReport, Location};
 pub use image_io::{
-    MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png, load_texture, save_exr,
-    save_png, texture_from_bytes,
+    ExrLayer, MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_exr_layers, encode_png,
+    load_texture, save_exr, save_exr_layers, save_png, texture_from_bytes,
 };
 pub use mesh::{MeshPart, load_mesh, load_mesh_from, merged_geometry};
 pub use ply_write::{PlyFormat, encode_ply, save_ply};

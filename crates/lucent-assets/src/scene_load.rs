@@ -91,6 +91,7 @@ impl Loader<'_> {
             shading: r.shading.unwrap_or(s.shading),
             seed: r.seed.unwrap_or(s.seed),
             integrator: r.integrator.unwrap_or(s.integrator),
+            denoise: r.denoise.unwrap_or(s.denoise),
         };
     }
 

@@ -223,6 +223,8 @@ pub struct RenderDesc {
     pub seed: Option<u64>,
     /// `"whitted"` or `"path"`.
     pub integrator: Option<crate::Integrator>,
+    /// Denoise the finished image (Intel Open Image Denoise, path tracer).
+    pub denoise: Option<bool>,
 }
 
 /// `[camera]`: the report's orbit rig and field of view.

@@ -116,6 +116,9 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Whitted (the report's model) or path tracing.
     pub integrator: Integrator,
+    /// Denoise the finished image (path tracer only): the app runs Intel
+    /// Open Image Denoise guided by the albedo and normal buffers.
+    pub denoise: bool,
 }
 
 impl Default for RenderSettings {
@@ -130,6 +133,7 @@ impl Default for RenderSettings {
             shading: Shading::Gouraud,
             seed: 0,
             integrator: Integrator::Whitted,
+            denoise: false,
         }
     }
 }
