@@ -11,12 +11,15 @@
 //! - `fuzz [TARGET...] [--runs N] [--time S]`: build and run the fuzz
 //!   targets in `fuzz/` (see `fuzz.rs`);
 //! - `tradeoff [SCENE...]`: speed against accuracy of the quality presets
-//!   (see `tradeoff.rs`).
+//!   (see `tradeoff.rs`);
+//! - `oidn [--force]`: install Intel Open Image Denoise under `target/oidn`
+//!   (see `oidn.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod extremes;
 mod fuzz;
+mod oidn;
 mod tidy;
 mod tradeoff;
 mod viewer;
@@ -68,7 +71,9 @@ commands:
                            default scenes res/scenes/seed.toml and cornell-mitsuba.toml;
                            writes target/tradeoff/report.md and PNGs; --check fails
                            unless every slower preset has a lower RMSE;
-                           --reference-only renders (or finds) the references only";
+                           --reference-only renders (or finds) the references only
+  oidn [--force]           install Intel Open Image Denoise 2 (for --denoise) into
+                           target/oidn/lib from PyPI's pyoidn wheel (needs python3 + pip)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -82,6 +87,7 @@ fn main() -> ExitCode {
         Some("extremes") => extremes::run_full(&args[1..]),
         Some("fuzz") => fuzz::fuzz(&args[1..]),
         Some("tradeoff") => tradeoff::tradeoff(&args[1..]),
+        Some("oidn") => oidn::install(&args[1..]),
         Some("-h" | "--help" | "help") => {
             println!("{USAGE}");
             Ok(())

@@ -7,7 +7,8 @@
 //! [`DenoiseError::NotInstalled`], whose message says how to install it
 //! (`cargo xtask oidn` fetches the official 2.x Linux binaries from PyPI's
 //! `pyoidn` into `target/oidn/lib`). Where it looks, in order:
-//! 1. `$LUCENT_OIDN`: the library file, or a directory holding it;
+//! 1. `$LUCENT_OIDN`: the library file, or a directory holding it (when
+//!    set, the only place looked);
 //! 2. `target/oidn/lib` beside the running program (`../oidn/lib` from
 //!    `target/release/lucent`, `../../oidn/lib` from a test binary in
 //!    `target/debug/deps`), and the same under the current directory;
@@ -118,6 +119,7 @@ pub fn candidates() -> Vec<PathBuf> {
     if let Some(v) = std::env::var_os(ENV_VAR).filter(|v| !v.is_empty()) {
         let p = PathBuf::from(v);
         out.push(if p.is_dir() { p.join(LIBRARY_NAME) } else { p });
+        return out;
     }
     let mut bases: Vec<PathBuf> = Vec::new();
     if let Ok(exe) = std::env::current_exe() {

@@ -77,6 +77,10 @@ struct QualityArgs {
     /// Light transport: the report's Whitted model or path tracing.
     #[arg(long, value_enum)]
     integrator: Option<IntegratorArg>,
+    /// Denoise with Intel Open Image Denoise, guided by albedo and normal
+    /// buffers (path tracer; install the library with `cargo xtask oidn`).
+    #[arg(long)]
+    denoise: bool,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -135,6 +139,9 @@ impl QualityArgs {
                 IntegratorArg::Whitted => Integrator::Whitted,
                 IntegratorArg::Path => Integrator::Path,
             };
+        }
+        if self.denoise {
+            s.denoise = true;
         }
     }
 }
