@@ -51,7 +51,7 @@ enum Command {
 #[derive(Args, Clone, Debug, Default)]
 struct QualityArgs {
     /// Quality preset: preview, interactive, final or reference (cheapest
-    /// first); explicit flags override it.
+    /// first), or whitted (the report's model); explicit flags override it.
     #[arg(long, value_name = "NAME", value_parser = parse_preset, long_help = preset_help())]
     preset: Option<&'static QualityPreset>,
     /// Image size, WIDTHxHEIGHT (1 to 16384 each).
@@ -149,11 +149,11 @@ impl QualityArgs {
 /// `--help` for `--preset`: every preset with its one-line description.
 fn preset_help() -> String {
     let mut help = String::from(
-        "Quality preset, cheapest first. It sets the resolution scale (of the scene's size), samples, \
-integrator, shading, depth, roulette and BVH build effort; explicit flags (--size, --spp, --max-depth, ...) \
-override it.",
+        "Quality preset: the path-traced ladder, cheapest first, then the report's Whitted model. It sets the \
+resolution scale (of the scene's size), samples, integrator, shading, depth, roulette and BVH build effort; \
+explicit flags (--size, --spp, --max-depth, --denoise, ...) override it.",
     );
-    for p in &quality::PRESETS {
+    for p in quality::all_presets() {
         help.push_str(&format!("\n  {:<12} {}", p.name, p.description));
     }
     help
