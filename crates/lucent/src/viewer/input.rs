@@ -18,6 +18,8 @@ pub struct FrameInput {
     pub toggle_shading: bool,
     /// Switch integrator.
     pub toggle_integrator: bool,
+    /// Switch denoising.
+    pub toggle_denoise: bool,
     /// Save a screenshot.
     pub screenshot: bool,
     /// Leave the viewer.
@@ -72,6 +74,7 @@ impl WindowInput {
             preset,
             toggle_shading: pressed(&[Key::G]),
             toggle_integrator: pressed(&[Key::I]),
+            toggle_denoise: pressed(&[Key::N]),
             screenshot: pressed(&[Key::P]),
             quit: down(&[Key::Escape]) || !window.is_open(),
         }
@@ -160,6 +163,7 @@ impl ScriptedInput {
             preset,
             toggle_shading: self.chance(0.003),
             toggle_integrator: self.chance(0.002),
+            toggle_denoise: self.chance(0.002),
             screenshot: false,
             quit: false,
         }

@@ -52,7 +52,7 @@ impl FrameReport<'_> {
             s,
             "{{\"frame\":{},\"t_s\":{},\"frame_ms\":{},\"render_ms\":{},\"output_ms\":{},\"width\":{},\"height\":{},\"scale\":{},\
 \"samples\":{},\"refined\":{},\"moving\":{},\"since_change_ms\":{},\"generation\":{},\"preset\":\"{}\",\
-\"shading\":\"{}\",\"camera\":{{\"R\":{},\"theta\":{},\"phi\":{},\"O\":[{},{},{}]}}}}",
+\"shading\":\"{}\",\"denoised\":{},\"denoise_ms\":{},\"camera\":{{\"R\":{},\"theta\":{},\"phi\":{},\"O\":[{},{},{}]}}}}",
             self.index,
             num(self.t_s),
             num(f64::from(self.frame_s) * 1e3),
@@ -68,6 +68,8 @@ impl FrameReport<'_> {
             f.generation,
             self.preset,
             self.shading,
+            f.denoised,
+            num(f64::from(f.denoise_s) * 1e3),
             radius,
             num(f64::from(r.theta)),
             num(f64::from(r.phi)),
@@ -129,6 +131,8 @@ mod tests {
             refined: false,
             render_s: 0.02,
             output_s: 0.001,
+            denoise_s: 0.004,
+            denoised: true,
         };
         let report = FrameReport {
             index: 3,
@@ -149,6 +153,7 @@ mod tests {
             "\"width\":320,\"height\":180,\"scale\":2.000000,",
             "\"samples\":1,\"refined\":false,\"moving\":true,",
             "\"generation\":7,",
+            "\"denoised\":true,\"denoise_ms\":4.000000,",
             "\"camera\":{\"R\":3e0,\"theta\":0.250000,\"phi\":1.500000,\"O\":[1.000000,-2.000000,0.500000]}}",
         ] {
             assert!(line.contains(field), "{field} in {line}");

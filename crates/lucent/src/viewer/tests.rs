@@ -225,6 +225,8 @@ fn a_frame_refined_to_the_cap_of_the_current_request_is_finished() {
         refined,
         render_s: 0.0,
         output_s: 0.0,
+        denoise_s: 0.0,
+        denoised: false,
     };
     assert!(v.is_finished(&frame(r.generation, 4, true)));
     assert!(!v.is_finished(&frame(r.generation, 3, true)), "below the cap");
