@@ -14,12 +14,15 @@
 //!   (see `tradeoff.rs`);
 //! - `farm`: a split render and a turntable on a one-node Slurm cluster
 //!   brought up and torn down here (see `farm.rs`).
+//! - `oidn [--force]`: install Intel Open Image Denoise under `target/oidn`
+//!   (see `oidn.rs`).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a task runner reports on stdout")]
 
 mod extremes;
 mod farm;
 mod fuzz;
+mod oidn;
 mod tidy;
 #[cfg(feature = "tradeoff")]
 mod tradeoff;
@@ -66,7 +69,9 @@ commands:
                            from Debian's slurm-wlm and munge; root), submit res/farm's
                            split-render array job with its merge job and a turntable
                            array, wait, cmp the outputs with single-process renders,
-                           and stop the daemons";
+                           and stop the daemons
+  oidn [--force]           install Intel Open Image Denoise 2 (for --denoise) into
+                           target/oidn/lib from PyPI's pyoidn wheel (needs python3 + pip)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -81,6 +86,7 @@ fn main() -> ExitCode {
         Some("fuzz") => fuzz::fuzz(&args[1..]),
         #[cfg(feature = "tradeoff")]
         Some("tradeoff") => tradeoff::tradeoff(&args[1..]),
+        Some("oidn") => oidn::install(&args[1..]),
         Some("farm") => farm::farm(&args[1..]),
         // Built by the `cargo xtask` alias without the feature: run the
         // release build with it, as `tradeoff` would run itself anyway (only

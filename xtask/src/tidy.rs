@@ -5,7 +5,8 @@
 //!   app, tobj/gltf/mikktspace/image only in lucent-assets (image also in
 //!   the test package), rayon only in lucent-render and lucent-accel, nv-flip and
 //!   plotters (measuring and plotting tools, C++ in nv-flip's case) only
-//!   in xtask;
+//!   in xtask, exr only in lucent-assets, libloading (which loads Intel
+//!   Open Image Denoise at run time) only in lucent-denoise;
 //! - no `#[should_panic]` or `#[ignore]` tests (assert on `Err` instead);
 //! - no trailing whitespace in our sources and docs (asset data under
 //!   `res/meshes` is kept byte-for-byte as shipped and is exempt).
@@ -23,6 +24,8 @@ const OWNERS: &[(&str, &[&str])] = &[
     ("rayon", &["lucent-render", "lucent-accel"]),
     ("nv-flip", &["xtask"]),
     ("plotters", &["xtask"]),
+    ("exr", &["lucent-assets"]),
+    ("libloading", &["lucent-denoise"]),
 ];
 
 /// Checks every rule; returns the problems found, one line each.

@@ -3,9 +3,15 @@
 //!
 //! For each scene (default: the seed scene and the Mitsuba Cornell box) a
 //! converged path-traced reference is rendered once and cached (see
-//! `reference.rs` for the cache key); then every preset is rendered
-//! `--runs` times, the presets taking turns so that a change of machine load
-//! hits them alike. Each preset gets the median wall time of extract (its
+//! `reference.rs` for the cache key); then every rung is rendered `--runs`
+//! times, the rungs taking turns so that a change of machine load hits them
+//! alike. The rungs are the physical ladder (`PRESETS`), the same presets
+//! but `reference` denoised with Intel Open Image Denoise (`NAME+oidn`:
+//! rendered with the albedo and normal buffers, then the RT filter; its
+//! time includes both; skipped with a note when OIDN is not installed),
+//! and the report's Whitted preview (`whitted`), off the ladder, which the
+//! path-traced `preview` replaced at the bottom. `--only a,b` measures the
+//! named rungs alone. Each preset gets the median wall time of extract (its
 //! BVH build quality is part of the preset) plus render, and its error
 //! against the reference: RMSE, relative RMSE and PSNR from
 //! `lucent_render::metrics`, and mean LDR-FLIP (nv-flip). A preset rendered
@@ -28,11 +34,15 @@ mod reference;
 mod report;
 
 use imaging::{Image, flip_mean, upsample};
+use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
-use lucent_render::quality::{PRESETS, QualityPreset};
-use lucent_render::{Integrator, RenderSettings, current_threads, extract_with, metrics, render, with_threads};
+use lucent_render::aov::AovFilm;
+use lucent_render::quality::{PRESETS, QualityPreset, WHITTED};
+use lucent_render::{
+    Film, Integrator, RenderSettings, current_threads, extract_with, metrics, render, render_samples_aov, with_threads,
+};
 use reference::{RefSettings, Reference};
-use report::{PresetResult, ReferenceSummary, RunInfo, SceneResult, Timing};
+use report::{PresetResult, ReferenceSummary, RunInfo, SceneResult, Series, Timing};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -56,8 +66,7 @@ const REF_MAX_DEPTH: u32 = 32;
 /// The reference's roulette start (the renderer's default).
 const REF_RR_DEPTH: u32 = 5;
 
-const USAGE: &str =
-    "usage: cargo xtask tradeoff [SCENE...] [--runs N] [--ref-spp N] [--threads N] [--check] [--reference-only]";
+const USAGE: &str = "usage: cargo xtask tradeoff [SCENE...] [--runs N] [--ref-spp N] [--threads N] [--only RUNG,...] [--check] [--reference-only]";
 
 struct Opts {
     scenes: Vec<PathBuf>,
@@ -66,6 +75,47 @@ struct Opts {
     threads: usize,
     check: bool,
     reference_only: bool,
+    /// Rung names to measure (all when empty).
+    only: Vec<String>,
+}
+
+/// One row of the measurement: a preset, maybe denoised.
+#[derive(Clone, Debug)]
+struct Rung {
+    name: String,
+    preset: &'static QualityPreset,
+    denoise: bool,
+    series: Series,
+}
+
+/// Every rung (see the module docs), the denoised ones only with a
+/// denoiser; filtered by `only` when it names any.
+fn rungs(with_denoised: bool, only: &[String]) -> Vec<Rung> {
+    let mut out: Vec<Rung> = PRESETS
+        .iter()
+        .map(|p| Rung {
+            name: p.name.to_owned(),
+            preset: p,
+            denoise: false,
+            series: Series::Ladder,
+        })
+        .collect();
+    if with_denoised {
+        out.extend(PRESETS.iter().filter(|p| p.name != "reference").map(|p| Rung {
+            name: format!("{}+oidn", p.name),
+            preset: p,
+            denoise: true,
+            series: Series::Denoised,
+        }));
+    }
+    out.push(Rung {
+        name: WHITTED.name.to_owned(),
+        preset: &WHITTED,
+        denoise: false,
+        series: Series::Other,
+    });
+    out.retain(|r| only.is_empty() || only.contains(&r.name));
+    out
 }
 
 fn parse(args: &[String]) -> Result<Opts, String> {
@@ -76,6 +126,7 @@ fn parse(args: &[String]) -> Result<Opts, String> {
         threads: 0,
         check: false,
         reference_only: false,
+        only: Vec::new(),
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -90,6 +141,10 @@ fn parse(args: &[String]) -> Result<Opts, String> {
             "--ref-spp" => opts.ref_spp = Some(number("--ref-spp")?),
             "--threads" => opts.threads = number("--threads")? as usize,
             "--check" => opts.check = true,
+            "--only" => {
+                let list = it.next().ok_or_else(|| format!("--only needs rung names\n{USAGE}"))?;
+                opts.only = list.split(',').map(str::to_owned).collect();
+            }
             "--reference-only" => opts.reference_only = true,
             "-h" | "--help" => return Err(USAGE.to_owned()),
             s if s.starts_with('-') => return Err(format!("unknown option '{s}'\n{USAGE}")),
@@ -215,20 +270,29 @@ fn reference_of(
 fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult, String> {
     let (scene, stem, ref_settings, reference) = reference_of(path, opts, &out_dir.join("cache"))?;
     let base = scene.settings;
+    let denoiser = match Denoiser::load(opts.threads) {
+        Ok(d) => Some(d),
+        Err(e) => {
+            println!("  note: no denoised rungs: {e}");
+            None
+        }
+    };
+    let rungs = rungs(denoiser.is_some(), &opts.only);
 
-    // Presets take turns: run 1 of each, then run 2 of each, ...
-    let mut timings: Vec<Vec<Timing>> = vec![Vec::new(); PRESETS.len()];
-    let mut images: Vec<Option<Image>> = vec![None; PRESETS.len()];
+    // Rungs take turns: run 1 of each, then run 2 of each, ...
+    let mut timings: Vec<Vec<Timing>> = vec![Vec::new(); rungs.len()];
+    let mut images: Vec<Option<Image>> = vec![None; rungs.len()];
     for run in 0..opts.runs {
-        for (i, preset) in PRESETS.iter().enumerate() {
-            let (timing, image) = time_preset(&scene, &base, preset)?;
+        for (i, rung) in rungs.iter().enumerate() {
+            let (timing, image) = time_rung(&scene, &base, rung, denoiser.as_ref())?;
             println!(
-                "  run {}/{} {:<12} extract {:.3} s + render {:.3} s",
+                "  run {}/{} {:<18} extract {:.3} s + render {:.3} s + denoise {:.3} s",
                 run + 1,
                 opts.runs,
-                preset.name,
+                rung.name,
                 timing.extract_s,
-                timing.render_s
+                timing.render_s,
+                timing.denoise_s
             );
             timings[i].push(timing);
             images[i].get_or_insert(image);
@@ -237,16 +301,17 @@ fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult
 
     let mut presets = Vec::new();
     let mut upsampled = Vec::new();
-    for ((preset, runs), image) in PRESETS.iter().zip(timings).zip(images) {
+    for ((rung, runs), image) in rungs.iter().zip(timings).zip(images) {
         let image = image.ok_or("no runs")?;
-        let png = out_dir.join("images").join(format!("{stem}-{}.png", preset.name));
+        let png = out_dir.join("images").join(format!("{stem}-{}.png", rung.name));
         lucent_assets::save_png(&png, image.width, image.height, &image.to_srgb8()).map_err(|e| e.to_string())?;
         let up = upsample(&image, reference.image.width, reference.image.height);
         let error = metrics::compare(&up.pixels, &reference.image.pixels).ok_or("empty image")?;
         let flip = flip_mean(&up, &reference.image).ok_or("empty image")?;
         presets.push(PresetResult {
-            name: preset.name.to_owned(),
-            settings: describe(preset, &base),
+            name: rung.name.clone(),
+            series: rung.series,
+            settings: describe(rung.preset, &base, rung.denoise),
             runs,
             error,
             flip,
@@ -291,7 +356,7 @@ fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult
             format!("own noise RMSE {}", report::sig(reference.noise_rmse, 3)),
         ],
     ));
-    plot::contact_sheet(&tiles, 3, &out_dir.join(format!("{stem}-contact.png")))?;
+    plot::contact_sheet(&tiles, 4, &out_dir.join(format!("{stem}-contact.png")))?;
     Ok(result)
 }
 
@@ -340,12 +405,15 @@ fn get_reference(
     })
 }
 
-/// One timed extract + render of a preset; the image as linear radiance.
-fn time_preset(
+/// One timed extract + render (+ denoise) of a rung; the image as linear
+/// radiance.
+fn time_rung(
     scene: &lucent_scene::Scene,
     base: &RenderSettings,
-    preset: &QualityPreset,
+    rung: &Rung,
+    denoiser: Option<&Denoiser>,
 ) -> Result<(Timing, Image), String> {
+    let preset = rung.preset;
     let mut settings = *base;
     preset.apply(&mut settings);
     let start = Instant::now();
@@ -356,14 +424,38 @@ fn time_preset(
         let _ = rs.flat_bvh();
     }
     let extract_s = start.elapsed().as_secs_f64();
+    if rung.denoise {
+        let denoiser = denoiser.ok_or("a denoised rung without a denoiser")?;
+        let (w, h) = (settings.width.max(1), settings.height.max(1));
+        let (mut film, mut aovs) = (Film::new(w, h), AovFilm::new(w, h));
+        let start = Instant::now();
+        render_samples_aov(&rs, &settings, &mut film, &mut aovs, 0..settings.spp.max(1), &|_| {});
+        let render_s = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let (denoised, _) = denoiser
+            .denoise_film(&film, Some(&aovs), Quality::High)
+            .map_err(|e| e.to_string())?;
+        let denoise_s = start.elapsed().as_secs_f64();
+        let timing = Timing {
+            extract_s,
+            render_s,
+            denoise_s,
+        };
+        return Ok((timing, Image::from_film(&denoised)));
+    }
     let start = Instant::now();
     let out = render(&rs, &settings, &|_| {});
     let render_s = start.elapsed().as_secs_f64();
-    Ok((Timing { extract_s, render_s }, Image::from_film(&out.film)))
+    let timing = Timing {
+        extract_s,
+        render_s,
+        denoise_s: 0.0,
+    };
+    Ok((timing, Image::from_film(&out.film)))
 }
 
 /// A preset's settings on a scene, one line.
-fn describe(p: &QualityPreset, base: &RenderSettings) -> String {
+fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
     let mut s = *base;
     p.apply(&mut s);
     let model = match s.integrator {
@@ -376,12 +468,13 @@ fn describe(p: &QualityPreset, base: &RenderSettings) -> String {
         Integrator::Path => format!("path, depth {}, roulette from {}", s.max_depth, s.rr_depth),
     };
     format!(
-        "{}x{} ({}x), {} spp, {model}, BVH {}",
+        "{}x{} ({}x), {} spp, {model}, BVH {}{}",
         s.width,
         s.height,
         p.resolution_scale,
         s.spp,
-        p.bvh_quality.name()
+        p.bvh_quality.name(),
+        if denoise { ", OIDN RT (albedo, normal)" } else { "" }
     )
 }
 
@@ -471,6 +564,9 @@ mod tests {
         assert_eq!(o.scenes, vec![PathBuf::from("a.toml"), PathBuf::from("b.toml")]);
         assert_eq!((o.runs, o.ref_spp, o.check, o.threads), (5, Some(64), true, 0));
         assert!(!o.reference_only && parse(&args("--reference-only")).is_ok_and(|o| o.reference_only));
+        let o = parse(&args("--only preview,whitted")).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(o.only, vec!["preview".to_owned(), "whitted".to_owned()]);
+        assert!(parse(&args("--only")).is_err());
         let o = parse(&[]).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(o.scenes.len(), 2);
         assert!(o.scenes.iter().all(|s| s.is_file()), "{:?}", o.scenes);
@@ -505,8 +601,9 @@ mod tests {
         let out = dir.join("out");
         let first = measure_scene(&scene, &opts, &out).unwrap_or_else(|e| panic!("{e}"));
         assert!(!first.reference.cached);
-        assert_eq!(first.presets.len(), PRESETS.len());
-        for (p, want) in first.presets.iter().zip(&PRESETS) {
+        let want = rungs(Denoiser::load(0).is_ok(), &[]);
+        assert_eq!(first.presets.len(), want.len());
+        for (p, want) in first.presets.iter().zip(&want) {
             assert_eq!(p.name, want.name);
             assert_eq!(p.runs.len(), 2);
             assert!(p.error.rmse.is_finite() && p.error.rmse > 0.0, "{p:?}");
@@ -529,14 +626,40 @@ mod tests {
     }
 
     #[test]
+    fn the_rungs_are_the_ladder_its_denoised_twin_and_whitted() {
+        let all = rungs(true, &[]);
+        let names: Vec<&str> = all.iter().map(|r| r.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "preview",
+                "interactive",
+                "final",
+                "reference",
+                "preview+oidn",
+                "interactive+oidn",
+                "final+oidn",
+                "whitted"
+            ]
+        );
+        assert!(all.iter().all(|r| r.denoise == (r.series == Series::Denoised)));
+        assert_eq!(rungs(false, &[]).len(), PRESETS.len() + 1);
+        let some = rungs(true, &["whitted".to_owned(), "final+oidn".to_owned()]);
+        assert_eq!(
+            some.iter().map(|r| r.name.as_str()).collect::<Vec<_>>(),
+            ["final+oidn", "whitted"]
+        );
+    }
+
+    #[test]
     fn preset_descriptions_name_size_and_model() {
         let base = RenderSettings {
             width: 640,
             height: 360,
             ..RenderSettings::default()
         };
-        for p in &PRESETS {
-            let d = describe(p, &base);
+        for p in PRESETS.iter().chain([&WHITTED]) {
+            let d = describe(p, &base, false);
             assert!(
                 d.contains(&format!("{} spp", p.settings.spp.unwrap_or(base.spp))),
                 "{d}"

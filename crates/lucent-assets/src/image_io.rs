@@ -299,6 +299,97 @@ pub fn save_exr(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<(),
     write_encoded(path, encode_exr(width, height, rgb))
 }
 
+/// One group of extra channels of a layered EXR ([`encode_exr_layers`]):
+/// channels named `LAYER.C` for each `C` of `channels`, the samples
+/// interleaved (row-major, row 0 at the top).
+#[derive(Clone, Copy, Debug)]
+pub struct ExrLayer<'a> {
+    /// Layer name, e.g. `albedo`.
+    pub name: &'a str,
+    /// Channel names, e.g. `["R", "G", "B"]`.
+    pub channels: &'a [&'a str],
+    /// `width * height * channels.len()` interleaved floats.
+    pub data: &'a [f32],
+}
+
+/// Encodes linear RGB floats as the `R`, `G`, `B` channels of a
+/// single-part OpenEXR image with 32-bit float channels, plus each of
+/// `layers` as channels `LAYER.C` (the channel-group convention that
+/// Blender, Nuke and OpenImageIO read as layers). A reader that only wants
+/// RGB ([`decode_exr`]) sees the beauty image.
+///
+/// ```
+/// use lucent_assets::{ExrLayer, decode_exr, encode_exr_layers};
+/// use std::path::Path;
+/// let rgb = [0.5f32, 0.25, 1.0];
+/// let depth = [3.0f32];
+/// let layers = [ExrLayer { name: "depth", channels: &["Z"], data: &depth }];
+/// let bytes = encode_exr_layers(1, 1, &rgb, &layers)?;
+/// assert_eq!(decode_exr(&bytes, Path::new("a.exr"))?, (1, 1, rgb.to_vec()));
+/// # Ok::<(), lucent_assets::AssetError>(())
+/// ```
+pub fn encode_exr_layers(width: u32, height: u32, rgb: &[f32], layers: &[ExrLayer<'_>]) -> Result<Vec<u8>, AssetError> {
+    use exr::prelude::{
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, Vec2, WritableImage,
+    };
+    let n = width as usize * height as usize;
+    let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::new();
+    let mut group = |prefix: &str, names: &[&str], data: &[f32]| -> Result<(), AssetError> {
+        if n == 0 || data.len() != n * names.len() {
+            return Err(AssetError::format(
+                "<exr>",
+                format!(
+                    "{} floats do not make a {width}x{height} image of {} channels ({prefix}{})",
+                    data.len(),
+                    names.len(),
+                    names.join(",")
+                ),
+            ));
+        }
+        for (c, name) in names.iter().enumerate() {
+            let samples: Vec<f32> = data.iter().skip(c).step_by(names.len()).copied().collect();
+            channels.push(AnyChannel::new(
+                format!("{prefix}{name}").as_str(),
+                FlatSamples::F32(samples),
+            ));
+        }
+        Ok(())
+    };
+    group("", &["R", "G", "B"], rgb)?;
+    for layer in layers {
+        if layer.name.is_empty() || layer.name.contains('.') || layer.channels.is_empty() {
+            return Err(AssetError::format(
+                "<exr>",
+                format!("'{}' is not a layer name with channels", layer.name),
+            ));
+        }
+        group(&format!("{}.", layer.name), layer.channels, layer.data)?;
+    }
+    let layer = Layer::new(
+        Vec2(width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(channels)),
+    );
+    let mut out = Vec::new();
+    Image::from_layer(layer)
+        .write()
+        .to_buffered(Cursor::new(&mut out))
+        .map_err(|e| AssetError::format("<exr>", format!("cannot encode EXR: {e}")))?;
+    Ok(out)
+}
+
+/// Writes [`encode_exr_layers`]'s file.
+pub fn save_exr_layers(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[f32],
+    layers: &[ExrLayer<'_>],
+) -> Result<(), AssetError> {
+    write_encoded(path, encode_exr_layers(width, height, rgb, layers))
+}
+
 /// Writes what an encoder produced to `path`; an encoding error is
 /// reported against `path` instead of the encoder's placeholder name.
 fn write_encoded(path: &Path, encoded: Result<Vec<u8>, AssetError>) -> Result<(), AssetError> {
@@ -380,6 +471,65 @@ mod tests {
         assert_eq!(back, Ok((2, 1, px.to_vec())));
         assert!(encode_exr(2, 2, &px).is_err());
         assert!(decode_exr(b"not an exr", Path::new("t.exr")).is_err());
+    }
+
+    #[test]
+    fn layered_exr_keeps_every_channel_and_rejects_wrong_sizes() {
+        let rgb = [1.0f32, 2.0, 3.0, 4.0, 5.0, 6.0];
+        let normal = [0.0f32, 0.0, 1.0, 1.0, 0.0, 0.0];
+        let depth = [2.5f32, f32::INFINITY];
+        let layers = [
+            ExrLayer {
+                name: "normal",
+                channels: &["X", "Y", "Z"],
+                data: &normal,
+            },
+            ExrLayer {
+                name: "depth",
+                channels: &["Z"],
+                data: &depth,
+            },
+        ];
+        let bytes = encode_exr_layers(2, 1, &rgb, &layers).map_err(|e| e.to_string());
+        let Ok(bytes) = bytes else { panic!("{bytes:?}") };
+        let back = decode_exr(&bytes, Path::new("t.exr")).map_err(|e| e.to_string());
+        assert_eq!(back, Ok((2, 1, rgb.to_vec())), "RGB readers see the beauty");
+        use exr::prelude::{ReadChannels, ReadLayers};
+        let image = exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(Cursor::new(&bytes))
+            .map_err(|e| e.to_string());
+        let Ok(image) = image else { panic!("{image:?}") };
+        let channels = &image.layer_data[0].channel_data.list;
+        let get = |name: &str| {
+            channels
+                .iter()
+                .find(|c| c.name.to_string() == name)
+                .map(|c| c.sample_data.values_as_f32().collect::<Vec<f32>>())
+        };
+        assert_eq!(get("normal.Z"), Some(vec![1.0, 0.0]));
+        assert_eq!(get("normal.X"), Some(vec![0.0, 1.0]));
+        assert_eq!(get("depth.Z"), Some(vec![2.5, f32::INFINITY]));
+        assert_eq!(get("G"), Some(vec![2.0, 5.0]));
+        assert_eq!(channels.len(), 7);
+        let short = [ExrLayer {
+            name: "depth",
+            channels: &["Z"],
+            data: &depth[..1],
+        }];
+        assert!(encode_exr_layers(2, 1, &rgb, &short).is_err());
+        let dotted = [ExrLayer {
+            name: "a.b",
+            channels: &["Z"],
+            data: &depth,
+        }];
+        assert!(encode_exr_layers(2, 1, &rgb, &dotted).is_err());
+        assert!(encode_exr_layers(2, 1, &rgb[..3], &[]).is_err());
     }
 
     #[test]

@@ -53,9 +53,9 @@ mod hostile_tests;
 pub use error::{AssetError, LoadReport, Location};
 pub use gltf_load::{GltfOptions, SUPPORTED_EXTENSIONS as GLTF_EXTENSIONS, load_gltf_from};
 pub use image_io::{
-    ColorSpace, MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_png,
-    environment_map_from_bytes, load_environment_map, load_texture, save_exr, save_png, texture_from_bytes,
-    texture_from_bytes_as,
+    ColorSpace, ExrLayer, MAX_TEXELS, MAX_TEXELS_PER_BYTE, MAX_TEXTURE_SIDE, decode_exr, encode_exr, encode_exr_layers,
+    encode_png, environment_map_from_bytes, load_environment_map, load_texture, save_exr, save_exr_layers, save_png,
+    texture_from_bytes, texture_from_bytes_as,
 };
 pub use mesh::{MeshPart, load_mesh, load_mesh_from, merged_geometry};
 pub use ply_write::{PlyFormat, encode_ply, save_ply};

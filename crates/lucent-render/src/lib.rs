@@ -36,6 +36,7 @@
 //! ```
 #![forbid(unsafe_code)]
 
+pub mod aov;
 mod camera;
 pub mod envlight;
 pub mod exact;
@@ -64,6 +65,6 @@ pub use lucent_scene::{Integrator, RenderOverrides, RenderSettings, Shading, Ton
 pub use progressive::{AdaptiveOutput, render_for, render_to_error};
 pub use quality::{PRESETS, QualityPreset, preset};
 pub use render::{
-    RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, render_samples_cancellable,
-    with_threads,
+    RayStats, RenderOutput, ThreadPoolError, current_threads, render, render_samples, render_samples_aov,
+    render_samples_aov_cancellable, render_samples_cancellable, with_threads,
 };

@@ -43,13 +43,19 @@
 //! ([`lucent_geom::offset_ray_origin_scaled`]); a shadow ray aims from that origin at
 //! the sampled point on the light, itself pushed off the light, and stops
 //! just short of it ([`LightSample::shadow_ray`](crate::lights::LightSample::shadow_ray)).
+//!
+//! [`PathTracer::trace_primary_aov`] traces the very same path (the same
+//! random numbers, the same radiance) and also fills an
+//! [`AovSample`](crate::aov::AovSample) at the first non-specular surface;
+//! [`PathTracer::trace_primary`] is its variant compiled without that work.
 
+use crate::aov::{AovRecorder, AovSample};
 use crate::flat::FlatBvh;
 use crate::interaction::SurfaceInteraction;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3};
-use lucent_shading::{Bsdf, Frame};
+use lucent_shading::{Bsdf, Frame, Material};
 
 /// Highest survival probability of Russian roulette.
 const RR_MAX_SURVIVAL: f32 = 0.95;
@@ -86,16 +92,57 @@ impl<'a> PathTracer<'a> {
 
     /// Radiance along a camera ray, one path, random numbers from `rng`.
     pub fn trace_primary(&self, camera_ray: Ray, rng: &mut Pcg32, stats: &mut RayStats) -> Vec3 {
+        let mut unused = AovSample::default();
         if self.scene.features.emissive {
-            self.trace::<true>(camera_ray, rng, stats)
+            self.trace::<true, false>(camera_ray, rng, stats, &mut unused)
         } else {
-            self.trace::<false>(camera_ray, rng, stats)
+            self.trace::<false, false>(camera_ray, rng, stats, &mut unused)
+        }
+    }
+
+    /// [`PathTracer::trace_primary`] that also records the path's feature
+    /// buffers in `aov` (see [`crate::aov`]); the radiance is the same.
+    pub fn trace_primary_aov(
+        &self,
+        camera_ray: Ray,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+        aov: &mut AovSample,
+    ) -> Vec3 {
+        if self.scene.features.emissive {
+            self.trace::<true, true>(camera_ray, rng, stats, aov)
+        } else {
+            self.trace::<false, true>(camera_ray, rng, stats, aov)
         }
     }
 
     /// One path; `EMISSIVE` is the scene's feature (false only when no
-    /// material emits, so no surface the path meets is a light).
-    fn trace<const EMISSIVE: bool>(&self, camera_ray: Ray, rng: &mut Pcg32, stats: &mut RayStats) -> Vec3 {
+    /// material emits, so no surface the path meets is a light); with
+    /// `AOV` the feature buffers are recorded into `aov`.
+    fn trace<const EMISSIVE: bool, const AOV: bool>(
+        &self,
+        camera_ray: Ray,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+        aov: &mut AovSample,
+    ) -> Vec3 {
+        let mut rec = AovRecorder::new();
+        let radiance = self.trace_path::<EMISSIVE, AOV>(camera_ray, rng, stats, aov, &mut rec);
+        if AOV {
+            rec.end(aov);
+        }
+        radiance
+    }
+
+    #[inline(always)]
+    fn trace_path<const EMISSIVE: bool, const AOV: bool>(
+        &self,
+        camera_ray: Ray,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+        aov: &mut AovSample,
+        rec: &mut AovRecorder,
+    ) -> Vec3 {
         let scene = self.scene;
         let lights = &scene.light_set;
         let mut radiance = Vec3::ZERO;
@@ -114,14 +161,21 @@ impl<'a> PathTracer<'a> {
         let mut depth = 0u32;
         loop {
             let Some(sh) = self.intersect(&ray) else {
-                if let Some(env) = lights.environment() {
-                    let le = env.eval(ray.dir);
-                    let w = if prev_delta {
-                        1.0
-                    } else {
-                        power_heuristic(prev_pdf, lights.pdf_environment(ray.dir))
-                    };
-                    radiance += throughput * le * w;
+                let le = match lights.environment() {
+                    Some(env) => {
+                        let le = env.eval(ray.dir);
+                        let w = if prev_delta {
+                            1.0
+                        } else {
+                            power_heuristic(prev_pdf, lights.pdf_environment(ray.dir))
+                        };
+                        radiance += throughput * le * w;
+                        le
+                    }
+                    None => Vec3::ZERO,
+                };
+                if AOV && rec.pending() {
+                    rec.miss(aov, le);
                 }
                 break;
             };
@@ -142,17 +196,29 @@ impl<'a> PathTracer<'a> {
                 }
             }
             if depth + 1 >= self.max_depth {
+                if AOV
+                    && rec.pending()
+                    && let Some((bsdf, material)) = self.bsdf_at(&hit)
+                {
+                    let n = hit.mapped_normal(material);
+                    rec.surface(aov, sh.t, facing(n, ray.dir), bsdf.albedo(), bsdf.is_delta());
+                }
                 break;
             }
-            let material_index = hit.instance.material as usize;
-            let Some(material) = scene.materials.get(material_index) else {
+            let Some((bsdf, material)) = self.bsdf_at(&hit) else {
                 break;
             };
-            let bsdf = match (self.plain_bsdfs.get(material_index), hit.color) {
-                (Some(Some(bsdf)), None) => *bsdf,
-                _ => material.bsdf_at(hit.uv, hit.color),
-            };
-            let frame = Frame::from_normal(hit.mapped_normal(material));
+            let shading_normal = hit.mapped_normal(material);
+            if AOV && rec.pending() {
+                rec.surface(
+                    aov,
+                    sh.t,
+                    facing(shading_normal, ray.dir),
+                    bsdf.albedo(),
+                    bsdf.is_delta(),
+                );
+            }
+            let frame = Frame::from_normal(shading_normal);
             let wo = frame.to_local(-ray.dir);
 
             // Next-event estimation.
@@ -184,6 +250,9 @@ impl<'a> PathTracer<'a> {
                 break;
             };
             throughput *= bs.weight;
+            if AOV && rec.pending() {
+                rec.specular_bounce(bs.weight);
+            }
             if throughput.max_element() <= 0.0 {
                 break;
             }
@@ -221,6 +290,19 @@ impl<'a> PathTracer<'a> {
         radiance
     }
 
+    /// The BSDF at `hit` (texture and vertex colour applied) and its
+    /// material; `None` for a material index out of range.
+    #[inline(always)]
+    fn bsdf_at(&self, hit: &SurfaceInteraction<'_>) -> Option<(Bsdf, &'a Material)> {
+        let material_index = hit.instance.material as usize;
+        let material = self.scene.materials.get(material_index)?;
+        let bsdf = match (self.plain_bsdfs.get(material_index), hit.color) {
+            (Some(Some(bsdf)), None) => *bsdf,
+            _ => material.bsdf_at(hit.uv, hit.color),
+        };
+        Some((bsdf, material))
+    }
+
     /// Closest hit, through the flat tree when the scene has one.
     #[inline]
     fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
@@ -238,6 +320,12 @@ impl<'a> PathTracer<'a> {
             None => self.scene.bvh.occluded(ray, t_max),
         }
     }
+}
+
+/// `n` turned to face against `dir` (towards where the ray came from).
+#[inline]
+fn facing(n: Vec3, dir: Vec3) -> Vec3 {
+    if n.dot(dir) > 0.0 { -n } else { n }
 }
 
 /// Veach's power heuristic (beta = 2) for two one-sample strategies.

@@ -8,16 +8,25 @@
 //! from [`PRESETS`], so the four names mean the same everywhere.
 //!
 //! Accuracy is judged against physical truth, a converged path-traced
-//! render, and each costlier preset is closer to it. So only the cheapest
-//! preset uses the report's Whitted model (Gouraud shading at half
-//! resolution: the familiar look, fast, but a different model: no indirect
-//! light, an ambient term and Phong lobes without the 1/pi of a BSDF, so
-//! on the seed scene it is about three times too bright); the others path
-//! trace with more samples, longer paths, later Russian roulette and, for
-//! the reference, the best BVH. Per-pixel Whitted shading measured no closer
-//! to the path-traced truth than Gouraud on either test scene, so it is a
-//! flag (`--shading phong`), not a preset. `cargo xtask tradeoff` measures
-//! the time and error of each preset.
+//! render, and every preset of the ladder ([`PRESETS`]) aims at that same
+//! image: all four path trace, each costlier one with more pixels or
+//! samples, longer paths, later Russian roulette and, for the reference,
+//! the best BVH. The cheapest, `preview`, is direct light plus one bounce
+//! at half resolution with one sample: a noisy but unbiased-in-look
+//! approximation of what the user gets when the camera stops.
+//!
+//! The report's Whitted model (Gouraud shading at half resolution) is the
+//! separate preset [`WHITTED`] (`--preset whitted`), off the ladder: the
+//! familiar look, fast, but a different model (no indirect light, an
+//! ambient term and Phong lobes without the 1/pi of a BSDF, so on the seed
+//! scene it is about three times too bright). Per-pixel Whitted shading
+//! measured no closer to the path-traced truth than Gouraud on either test
+//! scene, so it is a flag (`--shading phong`), not a preset.
+//!
+//! A preset may ask for denoising (`denoise` in its [`QualityPreset::settings`]; none of the
+//! built-in ones does, so they all render without Intel Open Image
+//! Denoise installed); `--denoise` adds it to any of them, and `cargo
+//! xtask tradeoff` measures every rung with and without it.
 
 use crate::{BuildQuality, ExtractOptions, Integrator, RenderOverrides, RenderSettings, Shading};
 
@@ -48,19 +57,38 @@ pub struct QualityPreset {
     pub bvh_quality: BuildQuality,
 }
 
-/// The presets, cheapest first (the viewer's keys F1-F4 in this order).
+/// The report's Whitted model with Gouraud shading at half resolution, one
+/// sample: the seed's look, off the physical ladder (see the module docs).
+pub const WHITTED: QualityPreset = QualityPreset {
+    name: "whitted",
+    description: "the report's Whitted model with Gouraud shading, half resolution, 1 sample: its own look, not the path-traced image",
+    resolution_scale: 0.5,
+    settings: RenderOverrides {
+        spp: Some(1),
+        integrator: Some(Integrator::Whitted),
+        shading: Some(Shading::Gouraud),
+        max_depth: Some(2),
+        min_weight: Some(0.05),
+        rr_depth: Some(5),
+        ..RenderOverrides::NONE
+    },
+    bvh_quality: BuildQuality::Fast,
+};
+
+/// The physical ladder, cheapest first (the viewer's keys F1-F4 in this
+/// order): every preset path traces the same image.
 pub const PRESETS: [QualityPreset; 4] = [
     QualityPreset {
         name: "preview",
-        description: "the report's Whitted model with Gouraud shading, half resolution, 1 sample: a quick look",
+        description: "path tracing, direct light and one bounce, half resolution, 1 sample: a quick, noisy look at the final image",
         resolution_scale: 0.5,
         settings: RenderOverrides {
             spp: Some(1),
-            integrator: Some(Integrator::Whitted),
-            shading: Some(Shading::Gouraud),
-            max_depth: Some(2),
-            min_weight: Some(0.05),
-            rr_depth: Some(5),
+            integrator: Some(Integrator::Path),
+            shading: Some(Shading::Phong),
+            max_depth: Some(3),
+            min_weight: Some(0.01),
+            rr_depth: Some(2),
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::Fast,
@@ -112,21 +140,28 @@ pub const PRESETS: [QualityPreset; 4] = [
     },
 ];
 
-/// The preset called `name` (exact, lowercase), if there is one.
+/// The preset called `name` (exact, lowercase) among [`PRESETS`] and
+/// [`WHITTED`], if there is one.
 ///
 /// ```
 /// use lucent_render::quality::{PRESETS, preset};
 /// assert_eq!(preset("final").map(|p| p.settings.spp), Some(PRESETS[2].settings.spp));
+/// assert!(preset("whitted").is_some());
 /// assert!(preset("ultra").is_none());
 /// ```
 pub fn preset(name: &str) -> Option<&'static QualityPreset> {
-    PRESETS.iter().find(|p| p.name == name)
+    PRESETS.iter().chain([&WHITTED]).find(|p| p.name == name)
 }
 
-/// The preset names, cheapest first, joined by `", "` (for error messages
-/// and help text).
+/// Every preset, the ladder cheapest first and then [`WHITTED`].
+pub fn all_presets() -> impl Iterator<Item = &'static QualityPreset> {
+    PRESETS.iter().chain([&WHITTED])
+}
+
+/// The preset names, the ladder cheapest first and then `whitted`, joined
+/// by `", "` (for error messages and help text).
 pub fn preset_names() -> String {
-    PRESETS.map(|p| p.name).join(", ")
+    all_presets().map(|p| p.name).collect::<Vec<_>>().join(", ")
 }
 
 impl QualityPreset {
@@ -233,16 +268,20 @@ mod tests {
                 assert!(set(a).rr_depth <= set(b).rr_depth, "{} {}", a.name, b.name);
             }
         }
-        // The cheapest is the report's model, the costliest physically based.
-        assert_eq!(model_rank(&PRESETS[0]), 0);
-        assert_eq!(set(&PRESETS[PRESETS.len() - 1]).integrator, Integrator::Path);
+        // Every rung aims at the path-traced image; the report's model is
+        // its own preset, off the ladder.
+        assert!(PRESETS.iter().all(|p| set(p).integrator == Integrator::Path));
+        assert_eq!(
+            (set(&WHITTED).integrator, set(&WHITTED).shading),
+            (Integrator::Whitted, Shading::Gouraud)
+        );
         assert!(PRESETS[0].resolution_scale < 1.0);
         assert_eq!(PRESETS[PRESETS.len() - 1].resolution_scale, 1.0);
     }
 
     #[test]
     fn presets_are_valid_settings() {
-        for p in &PRESETS {
+        for p in all_presets() {
             assert!(p.resolution_scale > 0.0 && p.resolution_scale <= 1.0, "{}", p.name);
             assert!(
                 set(p).spp >= 1 && set(p).rr_depth >= 1 && set(p).max_depth <= 64,
@@ -262,12 +301,13 @@ mod tests {
 
     #[test]
     fn names_are_unique_lowercase_and_round_trip() {
-        for (i, p) in PRESETS.iter().enumerate() {
+        let all: Vec<&QualityPreset> = all_presets().collect();
+        for (i, p) in all.iter().enumerate() {
             assert!(p.name.chars().all(|c| c.is_ascii_lowercase()), "{}", p.name);
-            assert!(PRESETS[..i].iter().all(|q| q.name != p.name), "{}", p.name);
-            assert_eq!(preset(p.name), Some(p), "{}", p.name);
+            assert!(all[..i].iter().all(|q| q.name != p.name), "{}", p.name);
+            assert_eq!(preset(p.name), Some(*p), "{}", p.name);
         }
-        assert_eq!(preset_names(), "preview, interactive, final, reference");
+        assert_eq!(preset_names(), "preview, interactive, final, reference, whitted");
         for bad in ["", "Preview", "preview ", "draft", "quality"] {
             assert!(preset(bad).is_none(), "{bad:?}");
         }
@@ -290,14 +330,23 @@ mod tests {
             assert_eq!((s.width, s.height), want, "{} {size:?}", preset.name);
             assert_eq!(s.seed, 7, "the seed is the caller's");
             assert_eq!(
-                (s.spp, s.integrator, s.shading, s.max_depth, s.min_weight, s.rr_depth),
+                (
+                    s.spp,
+                    s.integrator,
+                    s.shading,
+                    s.max_depth,
+                    s.min_weight,
+                    s.rr_depth,
+                    s.denoise
+                ),
                 (
                     set(preset).spp,
                     set(preset).integrator,
                     set(preset).shading,
                     set(preset).max_depth,
                     set(preset).min_weight,
-                    set(preset).rr_depth
+                    set(preset).rr_depth,
+                    set(preset).denoise
                 )
             );
         };
@@ -307,6 +356,10 @@ mod tests {
         check(&PRESETS[3], (640, 360), (640, 360));
         let tiny = QualityPreset {
             resolution_scale: 0.01,
+            settings: RenderOverrides {
+                denoise: Some(true),
+                ..PRESETS[0].settings
+            },
             ..PRESETS[0]
         };
         check(&tiny, (640, 20), (6, 1));
@@ -324,7 +377,7 @@ mod tests {
 
     #[test]
     fn extract_options_carry_the_build_quality() {
-        for p in &PRESETS {
+        for p in all_presets() {
             let mut o = p.extract_options();
             assert_eq!(o.bvh_quality, p.bvh_quality);
             o.bvh_quality = ExtractOptions::default().bvh_quality;

@@ -1,5 +1,6 @@
 //! The parallel, deterministic render loop.
 
+use crate::aov::{AovFilm, AovSample};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
@@ -155,6 +156,71 @@ pub fn render_samples_cancellable(
     Some(stats)
 }
 
+/// [`render_samples`] that also adds the samples' feature buffers to
+/// `aovs` (see [`crate::aov`]): the beauty sums are the very same as
+/// [`render_samples`] gives. Only the path tracer records AOVs; with the
+/// Whitted integrator `aovs` is left as it was (its sample count too).
+/// `aovs` must be the film's size; if not, it is left alone.
+///
+/// ```
+/// use lucent_render::{extract, Film, RenderSettings, Integrator, render_samples, render_samples_aov};
+/// use lucent_render::aov::AovFilm;
+/// use lucent_scene::{Scene, components::*};
+/// use lucent_geom::{shapes, Affine3A, Vec3};
+/// let mut scene = Scene::default();
+/// let mesh = scene.add_mesh("ball", shapes::icosphere(2));
+/// let mat = scene.add_material("white", Material::default());
+/// scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
+/// scene.add_light("sun", Light::Directional { to_light: Vec3::Y, intensity: Vec3::ONE });
+/// scene.add_camera("cam", Camera::default(), OrbitRig::default());
+/// let rs = extract(&scene)?;
+/// let settings = RenderSettings { integrator: Integrator::Path, ..RenderSettings::default() };
+/// let (mut film, mut aovs, mut plain) = (Film::new(16, 8), AovFilm::new(16, 8), Film::new(16, 8));
+/// render_samples_aov(&rs, &settings, &mut film, &mut aovs, 0..2, &|_| {});
+/// render_samples(&rs, &settings, &mut plain, 0..2, &|_| {});
+/// assert_eq!(film, plain);
+/// assert_eq!(aovs.n_samples(), 2);
+/// # Ok::<(), lucent_render::ExtractError>(())
+/// ```
+pub fn render_samples_aov(
+    scene: &RenderScene,
+    settings: &RenderSettings,
+    film: &mut Film,
+    aovs: &mut AovFilm,
+    samples: Range<u32>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> RayStats {
+    let never = AtomicBool::new(false);
+    let (stats, recorded) = trace_rows_aov(scene, settings, film, aovs, samples.clone(), progress, &never);
+    film.n_samples += samples.len() as u32;
+    if recorded {
+        aovs.n_samples += samples.len() as u32;
+    }
+    stats
+}
+
+/// [`render_samples_aov`] that gives up once `cancel` reads `true`, as
+/// [`render_samples_cancellable`] does; a cancelled pass leaves both films
+/// to be cleared.
+pub fn render_samples_aov_cancellable(
+    scene: &RenderScene,
+    settings: &RenderSettings,
+    film: &mut Film,
+    aovs: &mut AovFilm,
+    samples: Range<u32>,
+    cancel: &AtomicBool,
+) -> Option<RayStats> {
+    let (stats, recorded) = trace_rows_aov(scene, settings, film, aovs, samples.clone(), &|_| {}, cancel);
+    if cancel.load(Ordering::Relaxed) {
+        return None;
+    }
+    film.n_samples += samples.len() as u32;
+    if recorded {
+        aovs.n_samples += samples.len() as u32;
+    }
+    Some(stats)
+}
+
 /// The integrator a render runs.
 enum Tracer<'a> {
     Whitted(Whitted<'a>),
@@ -185,6 +251,27 @@ impl<'a> PixelSampler<'a> {
             tracer,
             width: u64::from(width),
             seed: settings.seed,
+        }
+    }
+
+    /// Whether [`PixelSampler::sample_aov`] records AOVs (the path tracer).
+    pub(crate) fn records_aovs(&self) -> bool {
+        matches!(self.tracer, Tracer::Path(_))
+    }
+
+    /// [`PixelSampler::sample`] that also records the sample's AOVs (path
+    /// tracer; the Whitted integrator leaves `aov` as it is).
+    #[inline]
+    pub(crate) fn sample_aov(&self, col: u32, row: u32, s: u32, stats: &mut RayStats, aov: &mut AovSample) -> Vec3 {
+        match &self.tracer {
+            Tracer::Whitted(_) => self.sample(col, row, s, stats),
+            Tracer::Path(path) => {
+                let pixel_idx = u64::from(row) * self.width + u64::from(col);
+                let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
+                let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
+                path.trace_primary_aov(ray, &mut rng, stats, aov)
+            }
         }
     }
 
@@ -242,6 +329,50 @@ fn trace_rows(
             stats
         })
         .reduce(RayStats::default, |a, b| a + b)
+}
+
+/// [`trace_rows`] that also records AOVs; returns whether it did (the
+/// path tracer, and `aovs` the film's size).
+fn trace_rows_aov(
+    scene: &RenderScene,
+    settings: &RenderSettings,
+    film: &mut Film,
+    aovs: &mut AovFilm,
+    samples: Range<u32>,
+    progress: &(dyn Fn(usize) + Sync),
+    cancel: &AtomicBool,
+) -> (RayStats, bool) {
+    let sampler = PixelSampler::new(scene, settings, film.width(), film.height());
+    if !sampler.records_aovs() || (aovs.width(), aovs.height()) != (film.width(), film.height()) {
+        return (trace_rows(scene, settings, film, samples, progress, cancel), false);
+    }
+    let width = film.width() as usize;
+    let rows_done = AtomicUsize::new(0);
+    let stats = film
+        .sum
+        .par_chunks_mut(width.max(1))
+        .zip(aovs.albedo.par_chunks_mut(width.max(1)))
+        .zip(aovs.normal.par_chunks_mut(width.max(1)))
+        .zip(aovs.depth.par_chunks_mut(width.max(1)))
+        .enumerate()
+        .map(|(row, (((pixels, albedo), normal), depth))| {
+            let mut stats = RayStats::default();
+            if cancel.load(Ordering::Relaxed) {
+                return stats;
+            }
+            let aov_pixels = albedo.iter_mut().zip(normal.iter_mut()).zip(depth.iter_mut());
+            for (col, (px, ((a, n), d))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
+                for s in samples.clone() {
+                    let mut aov = AovSample::default();
+                    px.add_sample(sampler.sample_aov(col as u32, row as u32, s, &mut stats, &mut aov));
+                    aov.add_to(a, n, d);
+                }
+            }
+            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
+            stats
+        })
+        .reduce(RayStats::default, |a, b| a + b);
+    (stats, true)
 }
 
 #[cfg(test)]

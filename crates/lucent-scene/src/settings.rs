@@ -125,6 +125,9 @@ pub struct RenderSettings {
     pub integrator: Integrator,
     /// Tone curve of 8-bit output (PNG, the viewer).
     pub tonemap: Tonemap,
+    /// Denoise the finished image (path tracer only): the app runs Intel
+    /// Open Image Denoise guided by the albedo and normal buffers.
+    pub denoise: bool,
 }
 
 impl Default for RenderSettings {
@@ -140,6 +143,7 @@ impl Default for RenderSettings {
             seed: 0,
             integrator: Integrator::Whitted,
             tonemap: Tonemap::Clamp,
+            denoise: false,
         }
     }
 }
@@ -189,6 +193,8 @@ pub struct RenderOverrides {
     /// `"clamp"` or `"filmic"`: the tone curve of 8-bit output.
     #[serde(default, deserialize_with = "named")]
     pub tonemap: Option<Tonemap>,
+    /// Denoise the finished image (Intel Open Image Denoise, path tracer).
+    pub denoise: Option<bool>,
 }
 
 impl RenderOverrides {
@@ -204,6 +210,7 @@ impl RenderOverrides {
         seed: None,
         integrator: None,
         tonemap: None,
+        denoise: None,
     };
 
     /// Writes every setting that is `Some` into `settings`.
@@ -224,6 +231,7 @@ impl RenderOverrides {
         set(&mut s.seed, self.seed);
         set(&mut s.integrator, self.integrator);
         set(&mut s.tonemap, self.tonemap);
+        set(&mut s.denoise, self.denoise);
     }
 }
 
@@ -258,6 +266,7 @@ mod tests {
             seed: Some(7),
             integrator: Some(Integrator::Path),
             tonemap: Some(Tonemap::Filmic),
+            denoise: Some(true),
         };
         all.apply(&mut s);
         let want = RenderSettings {
@@ -271,6 +280,7 @@ mod tests {
             seed: 7,
             integrator: Integrator::Path,
             tonemap: Tonemap::Filmic,
+            denoise: true,
         };
         assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
     }

@@ -102,7 +102,7 @@ enum Command {
 #[derive(Args, Clone, Debug, Default)]
 struct QualityArgs {
     /// Quality preset: preview, interactive, final or reference (cheapest
-    /// first); explicit flags override it.
+    /// first), or whitted (the report's model); explicit flags override it.
     #[arg(long, value_name = "NAME", value_parser = parse_preset, long_help = preset_help())]
     preset: Option<&'static QualityPreset>,
     /// Image size, WIDTHxHEIGHT (1 to 16384 each).
@@ -132,6 +132,10 @@ struct QualityArgs {
     /// highlights roll off). EXR output stays linear.
     #[arg(long, value_name = "NAME", value_parser = named::<Tonemap>())]
     tonemap: Option<Tonemap>,
+    /// Denoise with Intel Open Image Denoise, guided by albedo and normal
+    /// buffers (path tracer; install the library with `cargo xtask oidn`).
+    #[arg(long)]
+    denoise: bool,
 }
 
 impl QualityArgs {
@@ -162,6 +166,7 @@ impl QualityArgs {
             seed: self.seed,
             integrator: self.integrator,
             tonemap: self.tonemap,
+            denoise: self.denoise.then_some(true),
             ..RenderOverrides::NONE
         }
     }
@@ -178,11 +183,11 @@ fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
 /// `--help` for `--preset`: every preset with its one-line description.
 fn preset_help() -> String {
     let mut help = String::from(
-        "Quality preset, cheapest first. It sets the resolution scale (of the scene's size), samples, \
-integrator, shading, depth, roulette and BVH build effort; explicit flags (--size, --spp, --max-depth, ...) \
-override it.",
+        "Quality preset: the path-traced ladder, cheapest first, then the report's Whitted model. It sets the \
+resolution scale (of the scene's size), samples, integrator, shading, depth, roulette and BVH build effort; \
+explicit flags (--size, --spp, --max-depth, --denoise, ...) override it.",
     );
-    for p in &quality::PRESETS {
+    for p in quality::all_presets() {
         help.push_str(&format!("\n  {:<12} {}", p.name, p.description));
     }
     help

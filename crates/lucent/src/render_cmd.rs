@@ -1,12 +1,15 @@
 //! `lucent render`: headless rendering to a PNG and/or a linear EXR file.
 
 use crate::{QualityArgs, check_exr_path, check_png_path, prepare_scene};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
+use lucent_render::aov::AovFilm;
 use lucent_render::{
-    Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render, with_threads,
+    Film, Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render_samples_aov,
+    with_threads,
 };
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -29,6 +32,10 @@ pub struct RenderArgs {
     /// Output linear EXR file (32-bit float radiance, no exposure, no tone curve).
     #[arg(long, value_name = "FILE.exr")]
     pub(crate) exr: Option<PathBuf>,
+    /// Feature buffers to add to the --exr file as layers (channel groups
+    /// albedo.R/G/B, normal.X/Y/Z, depth.Z), comma-separated: albedo,normal,depth.
+    #[arg(long, value_name = "LIST", value_delimiter = ',', requires = "exr")]
+    aov: Vec<AovArg>,
     /// Exposure of the PNG in stops (EV): radiance is scaled by 2^EV first.
     #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_ev)]
     pub(crate) exposure: f32,
@@ -51,6 +58,18 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub(crate) farm: crate::farm::FarmArgs,
 }
+
+/// A feature buffer `--aov` can write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum AovArg {
+    Albedo,
+    Normal,
+    Depth,
+}
+
+/// Samples per pixel of the guide buffers when the image itself was not
+/// rendered with them (`--time-budget` with `--denoise`).
+const GUIDE_SPP: u32 = 8;
 
 /// A duration such as `2s`, `1.5s` or `500ms`, from 1 ms to 24 hours.
 fn parse_budget(s: &str) -> Result<Duration, String> {
@@ -102,9 +121,35 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     if let Some(share) = args.farm.part {
         crate::farm::check_part(share, &scene.settings)?;
+        if scene.settings.denoise || !args.aov.is_empty() {
+            bail!(
+                "--part {share} with --denoise or --aov is refused: a share holds some of every pixel's samples, \
+                 not an image to denoise, and partial files carry no feature buffers; render the shares without them"
+            );
+        }
     }
     let settings = scene.settings;
     let threads = args.threads.map_or(0, usize::from);
+    let want_aovs = settings.denoise || !args.aov.is_empty();
+    if want_aovs && settings.integrator != Integrator::Path {
+        bail!(
+            "--denoise and --aov need the path tracer (--integrator path, or a path-traced --preset): \
+             the Whitted integrator records no feature buffers"
+        );
+    }
+    if settings.denoise && args.target_error.is_some() {
+        bail!(
+            "--denoise with --target-error is refused: the error estimate comes from the variance of the \
+             samples, which says nothing about the error left after denoising (it would overstate it \
+             many times over); use --spp N --denoise, or --target-error without --denoise"
+        );
+    }
+    // Found before rendering, so a missing library costs no render time.
+    let denoiser = if settings.denoise {
+        Some(Denoiser::load(threads)?)
+    } else {
+        None
+    };
     let (rs, build_s, out, n_threads, refined) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
         let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
@@ -122,11 +167,26 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if !log::log_enabled!(log::Level::Info) {
             bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
         }
-        let (out, refined) = render_mode(&rs, &settings, &args, &bar);
+        let (out, aovs, refined) = render_mode(&rs, &settings, &args, want_aovs, &bar);
         bar.finish_and_clear();
-        Ok((rs, build_s, out, current_threads(), refined))
+        Ok((rs, build_s, (out, aovs), current_threads(), refined))
     })??;
+    let (mut out, aovs) = out;
     let (w, h) = (out.film.width(), out.film.height());
+    let mut denoised_note = String::new();
+    if let Some(denoiser) = &denoiser {
+        let (film, d) = denoiser.denoise_film(&out.film, aovs.as_ref(), Quality::High)?;
+        out.film = film;
+        let replaced = if d.replaced > 0 {
+            format!(", {} non-finite or negative values zeroed first", d.replaced)
+        } else {
+            String::new()
+        };
+        denoised_note = format!(
+            ", denoised (OIDN RT, albedo + normal) in {:.3} s{replaced}",
+            d.elapsed.as_secs_f64()
+        );
+    }
     if let Some(png) = &args.output {
         lucent_assets::save_png(
             png,
@@ -136,7 +196,31 @@ pub fn run(args: RenderArgs) -> Result<()> {
         )?;
     }
     if let Some(exr) = &args.exr {
-        lucent_assets::save_exr(exr, w, h, &out.film.to_linear_rgb())?;
+        let images = aovs.as_ref().map(AovFilm::images);
+        let mut layers = Vec::new();
+        if let Some(img) = &images {
+            for aov in &args.aov {
+                layers.push(match aov {
+                    AovArg::Albedo => lucent_assets::ExrLayer {
+                        name: "albedo",
+                        channels: &["R", "G", "B"],
+                        data: &img.albedo,
+                    },
+                    AovArg::Normal => lucent_assets::ExrLayer {
+                        name: "normal",
+                        channels: &["X", "Y", "Z"],
+                        data: &img.normal,
+                    },
+                    AovArg::Depth => lucent_assets::ExrLayer {
+                        name: "depth",
+                        channels: &["Z"],
+                        data: &img.depth,
+                    },
+                });
+            }
+        }
+        layers.dedup_by_key(|l| l.name);
+        lucent_assets::save_exr_layers(exr, w, h, &out.film.to_linear_rgb(), &layers)?;
     }
     if let (Some(share), Some(path)) = (args.farm.part, &args.farm.partial) {
         let options = args.quality.extract_options();
@@ -155,7 +239,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     if let Some(refined) = refined {
         println!(
-            "{}: {}x{}, {}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.2} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s",
+            "{}: {}x{}, {}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.2} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s{denoised_note}",
             outputs.join(" + "),
             settings.width,
             settings.height,
@@ -167,7 +251,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return Ok(());
     }
     println!(
-        "{}: {}x{}, {} spp, {}, {} threads, {} triangles: rendered in {:.2} s (load {:.2} s, BVH {:.3} s), {:.2} M rays, {:.2} Mrays/s, {:.3} s/spp",
+        "{}: {}x{}, {} spp, {}, {} threads, {} triangles: rendered in {:.2} s (load {:.2} s, BVH {:.3} s), {:.2} M rays, {:.2} Mrays/s, {:.3} s/spp{}",
         outputs.join(" + "),
         settings.width,
         settings.height,
@@ -181,19 +265,50 @@ pub fn run(args: RenderArgs) -> Result<()> {
         rays as f64 / 1e6,
         rays as f64 / 1e6 / secs.max(1e-9),
         secs / f64::from(settings.spp.max(1)),
+        denoised_note,
     );
     Ok(())
 }
 
 /// Renders as the arguments ask: a plain render, to a time budget, or to an
-/// error target. Returns the output and, for the last two, what they
-/// reached, for the summary line.
+/// error target. Returns the output, the feature buffers when `aovs`, and,
+/// for the last two modes, what they reached, for the summary line.
 fn render_mode(
     rs: &RenderScene,
     settings: &RenderSettings,
     args: &RenderArgs,
+    aovs: bool,
     bar: &ProgressBar,
-) -> (RenderOutput, Option<String>) {
+) -> (RenderOutput, Option<AovFilm>, Option<String>) {
+    let (out, refined) = render_image(rs, settings, args, aovs, bar);
+    match out {
+        Rendered::WithAovs(out, aov_film) => (out, Some(aov_film), refined),
+        Rendered::Plain(out) if aovs => {
+            // Modes that sample unevenly or to a clock record no AOVs:
+            // guide buffers from a short separate pass.
+            let (w, h) = (out.film.width(), out.film.height());
+            let mut scratch = Film::new(w, h);
+            let mut aov_film = AovFilm::new(w, h);
+            render_samples_aov(rs, settings, &mut scratch, &mut aov_film, 0..GUIDE_SPP, &|_| {});
+            (out, Some(aov_film), refined)
+        }
+        Rendered::Plain(out) => (out, None, refined),
+    }
+}
+
+/// A render, with its AOVs when it recorded them.
+enum Rendered {
+    Plain(RenderOutput),
+    WithAovs(RenderOutput, AovFilm),
+}
+
+fn render_image(
+    rs: &RenderScene,
+    settings: &RenderSettings,
+    args: &RenderArgs,
+    aovs: bool,
+    bar: &ProgressBar,
+) -> (Rendered, Option<String>) {
     if let Some(share) = args.farm.part {
         let out = lucent_render::partial::render_share(rs, settings, share, &|rows| bar.set_position(rows as u64));
         let r = share.samples(settings.spp);
@@ -204,7 +319,7 @@ fn render_mode(
             settings.spp,
             out.elapsed.as_secs_f64() / r.len().max(1) as f64
         );
-        return (out, Some(refined));
+        return (Rendered::Plain(out), Some(refined));
     }
     if let Some(budget) = args.time_budget {
         bar.set_style(
@@ -225,7 +340,7 @@ fn render_mode(
             "time budget {budget_s} s: {spp} spp reached{capped}, {samples} samples, {secs:.3} s elapsed ({:+.1}% of the budget)",
             (secs / budget_s - 1.0) * 100.0
         );
-        return (out, Some(refined));
+        return (Rendered::Plain(out), Some(refined));
     }
     if let Some(target) = args.target_error {
         bar.set_style(
@@ -254,7 +369,27 @@ fn render_mode(
             stats: out.stats,
             elapsed: out.elapsed,
         };
-        return (plain, Some(refined));
+        return (Rendered::Plain(plain), Some(refined));
     }
-    (render(rs, settings, &|rows| bar.set_position(rows as u64)), None)
+    let (w, h) = (settings.width.max(1), settings.height.max(1));
+    let mut film = Film::new(w, h);
+    let mut aov_film = AovFilm::new(w, h);
+    let start = Instant::now();
+    let progress = |rows: usize| bar.set_position(rows as u64);
+    let spp = settings.spp.max(1);
+    let stats = if aovs {
+        render_samples_aov(rs, settings, &mut film, &mut aov_film, 0..spp, &progress)
+    } else {
+        lucent_render::render_samples(rs, settings, &mut film, 0..spp, &progress)
+    };
+    let out = RenderOutput {
+        film,
+        stats,
+        elapsed: start.elapsed(),
+    };
+    if aovs {
+        (Rendered::WithAovs(out, aov_film), None)
+    } else {
+        (Rendered::Plain(out), None)
+    }
 }

@@ -26,9 +26,13 @@ fn render(name: &str, args: &[&str]) -> (String, (u32, u32)) {
 }
 
 #[test]
-fn preview_renders_the_scene_at_half_size_with_gouraud_whitted() {
-    // seed.toml is 640x360 at 4 spp; preview halves the size, one sample.
+fn preview_path_traces_at_half_size_and_whitted_keeps_the_report_model() {
+    // seed.toml is 640x360 at 4 spp; preview halves the size, one sample,
+    // direct light and one bounce.
     let (summary, size) = render("preview", &["--preset", "preview"]);
+    assert_eq!(size, (320, 180));
+    assert!(summary.contains("320x180, 1 spp, path max_depth 3"), "{summary}");
+    let (summary, size) = render("whitted", &["--preset", "whitted"]);
     assert_eq!(size, (320, 180));
     assert!(summary.contains("320x180, 1 spp, whitted gouraud"), "{summary}");
 }
@@ -62,7 +66,7 @@ fn an_unknown_preset_is_a_usage_error_listing_the_presets() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{cmd:?}: {err}");
         assert!(
-            err.contains("'ultra' is not a preset; the presets are preview, interactive, final, reference"),
+            err.contains("'ultra' is not a preset; the presets are preview, interactive, final, reference, whitted"),
             "{err}"
         );
         assert!(!err.contains("panicked"), "{err}");
@@ -81,7 +85,7 @@ fn help_names_the_presets() {
         assert!(out.status.success(), "{cmd:?}");
         assert!(help.contains("--preset"), "{cmd:?}: {help}");
         // Each preset on its own line with its description.
-        for p in &lucent_render::quality::PRESETS {
+        for p in lucent_render::quality::all_presets() {
             assert!(
                 help.lines().any(|l| l.contains(p.name) && l.contains(p.description)),
                 "{cmd:?} lacks {}: {help}",

@@ -5,7 +5,7 @@
 //! system font is needed.
 
 use super::imaging::Image;
-use super::report::{SceneResult, sig};
+use super::report::{SceneResult, Series, sig};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 use std::path::Path;
@@ -110,17 +110,31 @@ fn draw_error_vs_time(scenes: &[SceneResult]) -> Result<(u32, u32, Vec<u8>), Str
                         .draw()
                         .map_err(err)?;
                 }
-                let color = RGBColor(31, 90, 180);
-                chart
-                    .draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), color.stroke_width(2)))
-                    .map_err(err)?;
-                chart
-                    .draw_series(pts.iter().map(|p| {
-                        EmptyElement::at((p.0, p.1))
-                            + Circle::new((0, 0), 4, color.filled())
-                            + Text::new(p.2.to_owned(), (6, -16), (FAMILY, 13))
-                    }))
-                    .map_err(err)?;
+                // One line per series: the ladder, the denoised ladder;
+                // rows off the ladder are lone grey points.
+                for (series, color) in [
+                    (Series::Ladder, RGBColor(31, 90, 180)),
+                    (Series::Denoised, RGBColor(220, 110, 20)),
+                    (Series::Other, RGBColor(130, 130, 130)),
+                ] {
+                    let line: Vec<(f64, f64, &str)> = by_time
+                        .iter()
+                        .filter(|p| p.series == series)
+                        .map(|p| (p.time(), value(p), p.name.as_str()))
+                        .collect();
+                    if series != Series::Other {
+                        chart
+                            .draw_series(LineSeries::new(line.iter().map(|p| (p.0, p.1)), color.stroke_width(2)))
+                            .map_err(err)?;
+                    }
+                    chart
+                        .draw_series(line.iter().map(|p| {
+                            EmptyElement::at((p.0, p.1))
+                                + Circle::new((0, 0), 4, color.filled())
+                                + Text::new(p.2.to_owned(), (6, -16), (FAMILY, 13))
+                        }))
+                        .map_err(err)?;
+                }
             }
         }
         root.present().map_err(err)?;

@@ -318,3 +318,130 @@ fn one_and_two_threads_give_the_same_bytes() {
     assert_eq!(one, two);
     assert_eq!(one.stats().n_non_finite, 0);
 }
+
+/// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
+/// (albedo 0.5) at y = 2 that faces down, lit by a point light between.
+fn mirror_under_ceiling() -> RenderScene {
+    let mut scene = Scene {
+        environment: dark(),
+        ..Scene::default()
+    };
+    let plane = scene.add_mesh("plane", shapes::plane());
+    let mirror = scene.add_material(
+        "mirror",
+        Material {
+            kd: Vec3::ZERO,
+            kr: Vec3::splat(0.8),
+            ..Material::default()
+        },
+    );
+    let grey = scene.add_material(
+        "grey",
+        Material {
+            kd: Vec3::splat(0.5),
+            ..Material::default()
+        },
+    );
+    let big = Affine3A::from_scale(Vec3::splat(100.0));
+    scene.add_instance("floor", plane, mirror, big);
+    let flip = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(std::f32::consts::PI);
+    scene.add_instance("ceiling", plane, grey, flip * big);
+    scene.add_light(
+        "bulb",
+        Light::Point {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            intensity: Vec3::ONE,
+        },
+    );
+    scene.add_camera("cam", Camera::default(), OrbitRig::default());
+    extract(&scene).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn aovs_record_the_first_diffuse_surface_through_a_mirror_and_leave_radiance_alone() {
+    let from = Vec3::new(0.0, 1.0, 1.0);
+    let ray = Ray::new(from, (-from).normalize());
+    let s = settings(4, 1);
+    let mut stats = RayStats::default();
+
+    // Straight onto a diffuse floor: its albedo, its normal, the distance.
+    let rs = lit_floor(
+        Light::Point {
+            position: Vec3::new(0.0, 2.0, 0.0),
+            intensity: Vec3::splat(4.0),
+        },
+        0.5,
+    );
+    let tracer = PathTracer::new(&rs, &s);
+    let mut aov = AovSample::default();
+    let with = tracer.trace_primary_aov(ray, &mut Pcg32::new(9, 0), &mut stats, &mut aov);
+    let without = tracer.trace_primary(ray, &mut Pcg32::new(9, 0), &mut stats);
+    assert_eq!(with, without, "the same path");
+    let albedo = rs.materials[0].bsdf(Vec3::ONE).albedo();
+    assert!(albedo.x > 0.0 && albedo.x <= 1.0, "{albedo}");
+    assert_eq!(aov.albedo, albedo);
+    assert!((aov.normal - Vec3::Y).length() < 1e-5, "{}", aov.normal);
+    let d = aov.depth.unwrap_or(f32::NAN);
+    assert!((d - 2f32.sqrt()).abs() < 1e-4, "{d}");
+
+    // Through the mirror to the ceiling: 0.8 of its albedo, its normal
+    // (facing down, towards the ray), the whole distance travelled.
+    let rs = mirror_under_ceiling();
+    assert!(rs.materials[0].bsdf(Vec3::ONE).is_delta());
+    let tracer = PathTracer::new(&rs, &s);
+    let mut aov = AovSample::default();
+    let with = tracer.trace_primary_aov(ray, &mut Pcg32::new(5, 0), &mut stats, &mut aov);
+    let without = tracer.trace_primary(ray, &mut Pcg32::new(5, 0), &mut stats);
+    assert_eq!(with, without, "the same path");
+    assert!(with.max_element() > 0.0, "the ceiling is lit: {with}");
+    let want = 0.8 * rs.materials[1].bsdf(Vec3::ONE).albedo();
+    assert!((aov.albedo - want).abs().max_element() < 1e-5, "{} {want}", aov.albedo);
+    assert!((aov.normal + Vec3::Y).length() < 1e-5, "{}", aov.normal);
+    let d = aov.depth.unwrap_or(f32::NAN);
+    assert!((d - 3.0 * 2f32.sqrt()).abs() < 1e-3, "{d}");
+
+    // A path that stops at the mirror (depth limit 1) records the mirror.
+    let mut aov = AovSample::default();
+    PathTracer::new(&rs, &settings(1, 1)).trace_primary_aov(ray, &mut Pcg32::new(5, 0), &mut stats, &mut aov);
+    assert_eq!(aov.albedo, Vec3::ONE);
+    assert!((aov.normal - Vec3::Y).length() < 1e-5, "{}", aov.normal);
+
+    // Into the empty sky: the (black) background, no normal, no depth.
+    let rs = lit_floor(
+        Light::Directional {
+            to_light: Vec3::Y,
+            intensity: Vec3::ONE,
+        },
+        0.5,
+    );
+    let mut aov = AovSample::default();
+    let up = Ray::new(from, Vec3::Y);
+    PathTracer::new(&rs, &s).trace_primary_aov(up, &mut Pcg32::new(5, 0), &mut stats, &mut aov);
+    assert_eq!(aov, AovSample::default());
+}
+
+#[test]
+fn aov_buffers_do_not_depend_on_the_thread_count_and_leave_the_beauty_alone() {
+    let rs = mirror_under_ceiling();
+    let s = settings(6, 3);
+    let run = |threads| {
+        with_threads(threads, || {
+            let mut film = Film::new(s.width, s.height);
+            let mut aovs = crate::aov::AovFilm::new(s.width, s.height);
+            crate::render_samples_aov(&rs, &s, &mut film, &mut aovs, 0..3, &|_| {});
+            (film, aovs)
+        })
+        .unwrap_or_else(|e| panic!("{e}"))
+    };
+    let (film1, aov1) = run(1);
+    let (film2, aov2) = run(2);
+    assert_eq!(film1, film2);
+    assert_eq!(aov1, aov2);
+    assert_eq!(aov1.n_samples(), 3);
+    let plain = with_threads(2, || render(&rs, &s, &|_| {}).film).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(film1, plain, "recording AOVs changes no radiance");
+    let img = aov1.images();
+    assert!(img.depth.iter().all(|d| *d > 0.0));
+    assert!(img.depth.iter().any(|d| d.is_finite()));
+    assert!(img.albedo.iter().all(|a| (0.0..=1.0).contains(a)));
+}

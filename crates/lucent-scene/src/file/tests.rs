@@ -33,6 +33,7 @@ min_weight = 0.02
 rr_depth = 3
 shading = "phong"
 seed = 7
+denoise = true
 
 [camera]
 center = [0.0, 0.5, 0.0]
@@ -89,6 +90,7 @@ fn parses_every_table() {
     );
     assert_eq!(d.render.shading, Some(Shading::Phong));
     assert_eq!(d.render.rr_depth, Some(3));
+    assert_eq!(d.render.denoise, Some(true));
     for bad in ["rr_depth = 0", "rr_depth = 65"] {
         let e = parse(&format!("[render]\n{bad}\n"))
             .map(|_| ())

@@ -384,6 +384,20 @@ impl Bsdf {
         self.alpha == 0.0
     }
 
+    /// The mixture's reflectance colour for a denoiser's albedo buffer: the
+    /// sum of the lobes' weights, each channel clamped to `[0, 1]` (a
+    /// dielectric counts as white, since it reflects and transmits all).
+    ///
+    /// ```
+    /// use lucent_shading::Bsdf;
+    /// use lucent_geom::Vec3;
+    /// assert_eq!(Bsdf::lambertian(Vec3::new(0.2, 0.5, 0.8)).albedo(), Vec3::new(0.2, 0.5, 0.8));
+    /// assert_eq!(Bsdf::dielectric(1.5).albedo(), Vec3::ONE);
+    /// ```
+    pub fn albedo(&self) -> Vec3 {
+        (self.diffuse + self.glossy + self.conductor + self.dielectric).clamp(Vec3::ZERO, Vec3::ONE)
+    }
+
     /// True when every lobe with weight is a delta: next-event estimation
     /// is pointless, and `eval` and `pdf` are zero everywhere. (A black
     /// BSDF counts as delta too.)

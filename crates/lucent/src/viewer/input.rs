@@ -22,6 +22,8 @@ pub struct FrameInput {
     pub toggle_tonemap: bool,
     /// Turn the environment map a step about +y.
     pub turn_environment: bool,
+    /// Switch denoising.
+    pub toggle_denoise: bool,
     /// Save a screenshot.
     pub screenshot: bool,
     /// Leave the viewer.
@@ -78,6 +80,7 @@ impl WindowInput {
             toggle_integrator: pressed(&[Key::I]),
             toggle_tonemap: pressed(&[Key::T]),
             turn_environment: pressed(&[Key::E]),
+            toggle_denoise: pressed(&[Key::N]),
             screenshot: pressed(&[Key::P]),
             quit: down(&[Key::Escape]) || !window.is_open(),
         }
@@ -168,6 +171,7 @@ impl ScriptedInput {
             toggle_integrator: self.chance(0.002),
             toggle_tonemap: self.chance(0.002),
             turn_environment: self.chance(0.002),
+            toggle_denoise: self.chance(0.002),
             screenshot: false,
             quit: false,
         }

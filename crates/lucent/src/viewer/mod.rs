@@ -44,11 +44,15 @@ pub const CONTROLS: &str = "Controls:
   I                   switch integrator: the report's Whitted model / path tracing
   E                   turn the environment map 15 degrees about the vertical
   T                   switch tone curve: clamp / filmic (ACES fit; highlights roll off)
+  N                   denoise on / off (Intel Open Image Denoise: `cargo xtask oidn`)
   P                   save a screenshot (lucent-<unix ms>.png in the current directory)
   Esc                 quit
 
 The title shows frames per second, frame time, samples accumulated,
-resolution scale (window pixels per rendered pixel), preset and shading.
+resolution scale (window pixels per rendered pixel), preset, shading and
+whether the frame is denoised: with N on, the still image is denoised
+after every refinement pass and a moving preview when the measured cost
+of denoising it fits half the frame budget.
 The viewer starts on the scene's own [render] settings (preset: scene),
 or on --preset NAME; the keys pick the presets `lucent render --preset`
 takes (samples, depth, integrator, shading, resolution scale). G and I
@@ -362,6 +366,10 @@ impl ViewState {
             self.settings.tonemap = self.settings.tonemap.next();
             changed_settings = true;
         }
+        if input.toggle_denoise {
+            self.settings.denoise = !self.settings.denoise;
+            changed_settings = true;
+        }
         if input.toggle_integrator {
             // A Whitted depth d follows the same chains as a path depth
             // d + 2 (the camera ray and the light segment), so the switch
@@ -477,7 +485,7 @@ impl Shown {
 
     fn title(&self, name: &str, frame: &worker::Frame, view: &ViewState) -> String {
         format!(
-            "Lucent - {name} | {:.1} fps, {:.0} ms | {} spp | scale 1/{:.2} | {} | {}",
+            "Lucent - {name} | {:.1} fps, {:.0} ms | {} spp | scale 1/{:.2} | {} | {}{}",
             self.clock.fps(),
             self.clock.frame_ms(),
             frame.samples,
@@ -486,6 +494,11 @@ impl Shown {
             match view.settings.integrator {
                 Integrator::Whitted => view.settings.shading.name(),
                 other => other.name(),
+            },
+            match (view.settings.denoise, frame.denoised) {
+                (false, _) => "",
+                (true, true) => " | denoised",
+                (true, false) => " | noisy (denoise on)",
             },
         )
     }

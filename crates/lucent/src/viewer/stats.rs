@@ -48,6 +48,8 @@ impl FrameReport<'_> {
             "generation": f.generation,
             "preset": self.preset,
             "shading": self.shading,
+            "denoised": f.denoised,
+            "denoise_ms": f64::from(f.denoise_s) * 1e3,
             "camera": { "R": r.radius, "theta": r.theta, "phi": r.phi, "O": r.center.to_array() },
         })
         .to_string()
@@ -104,6 +106,8 @@ mod tests {
             refined: false,
             render_s: 0.02,
             output_s: 0.001,
+            denoise_s: 0.004,
+            denoised: true,
         };
         let report = FrameReport {
             index: 3,
@@ -123,13 +127,18 @@ mod tests {
         let want = serde_json::json!({
             "frame": 3, "t_s": 1.5, "frame_ms": null, "width": 320, "height": 180, "scale": 2.0,
             "samples": 1, "refined": false, "moving": true, "generation": 7,
-            "preset": "interactive", "shading": "gouraud",
+            "preset": "interactive", "shading": "gouraud", "denoised": true,
             "camera": { "R": 3.0, "theta": 0.25, "phi": 1.5, "O": [1.0, -2.0, 0.5] },
         });
         for (key, value) in want.as_object().into_iter().flatten() {
             assert_eq!(&v[key], value, "{key} in {line}");
         }
-        for (key, ms) in [("render_ms", 20.0), ("output_ms", 1.0), ("since_change_ms", 4.0)] {
+        for (key, ms) in [
+            ("render_ms", 20.0),
+            ("output_ms", 1.0),
+            ("since_change_ms", 4.0),
+            ("denoise_ms", 4.0),
+        ] {
             assert!(
                 v[key].as_f64().is_some_and(|x| (x - ms).abs() < 1e-3),
                 "{key} in {line}"

@@ -118,8 +118,8 @@ fn presets_and_shading_restart_accumulation_without_moving() {
     assert!(!r.moving && r.generation == g + 2);
     assert_eq!((r.max_spp, r.settings.max_depth), (preview.spp, preview.max_depth));
     assert_eq!(
-        (r.settings.shading, r.settings.min_weight),
-        (Shading::Gouraud, preview.min_weight)
+        (r.settings.integrator, r.settings.shading, r.settings.min_weight),
+        (Integrator::Path, preview.shading, preview.min_weight)
     );
     assert_eq!((r.settings.width, r.settings.height), (640, 360));
     assert!((r.still_scale * PRESETS[0].resolution_scale - 1.0).abs() < 1e-6);
@@ -129,7 +129,7 @@ fn presets_and_shading_restart_accumulation_without_moving() {
         ..FrameInput::default()
     };
     assert!(v.apply(&shading, t0));
-    assert_eq!(v.request().settings.shading, Shading::Phong);
+    assert_eq!(v.request().settings.shading, Shading::Gouraud);
     assert_eq!(v.request().generation, g + 3);
     // The final preset path traces at full resolution.
     let final_ = preset_settings(2);
@@ -158,13 +158,13 @@ fn presets_and_shading_restart_accumulation_without_moving() {
         (v.request().settings.integrator, v.request().settings.max_depth),
         (Integrator::Path, final_.max_depth)
     );
-    // A preset key undoes the switches: preview is Whitted and Gouraud again.
+    // A preset key undoes the switches: preview path traces again.
     assert!(v.apply(&integrator, t0) && v.apply(&shading, t0));
     assert!(v.apply(&pick(0), t0));
     let r = v.request();
     assert_eq!(
         (r.settings.integrator, r.settings.shading, r.settings.max_depth),
-        (Integrator::Whitted, Shading::Gouraud, preview.max_depth)
+        (Integrator::Path, preview.shading, preview.max_depth)
     );
 }
 
@@ -232,6 +232,8 @@ fn a_frame_refined_to_the_cap_of_the_current_request_is_finished() {
         refined,
         render_s: 0.0,
         output_s: 0.0,
+        denoise_s: 0.0,
+        denoised: false,
     };
     assert!(v.is_finished(&frame(r.generation, 4, true)));
     assert!(!v.is_finished(&frame(r.generation, 3, true)), "below the cap");

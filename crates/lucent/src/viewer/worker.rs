@@ -12,8 +12,19 @@
 //! accumulation; the camera coming to rest cancels a preview in flight (the
 //! full-resolution pass it delays is what the user waits for); a cancelled
 //! pass is never shown.
+//!
+//! With `RenderSettings::denoise` (the N key) the worker loads Intel Open
+//! Image Denoise the first time it is asked (a missing library is one
+//! warning on stderr and noisy frames); the still image is then refined
+//! with the albedo and normal buffers and denoised after every pass, and a
+//! moving preview is denoised (OIDN's fast setting) when the measured cost
+//! of denoising its pixels fits half the frame budget.
 
-use lucent_render::{Film, RenderScene, RenderSettings, Tonemap, render_samples_cancellable};
+use lucent_denoise::{Denoiser, Quality};
+use lucent_render::aov::AovFilm;
+use lucent_render::{
+    Film, RenderScene, RenderSettings, Tonemap, render_samples_aov_cancellable, render_samples_cancellable,
+};
 use lucent_scene::components::OrbitRig;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
@@ -67,6 +78,10 @@ pub struct Frame {
     pub render_s: f32,
     /// Seconds spent converting the film to window pixels.
     pub output_s: f32,
+    /// Seconds spent denoising (0: the frame is not denoised).
+    pub denoise_s: f32,
+    /// Whether the frame was denoised.
+    pub denoised: bool,
 }
 
 impl Frame {
@@ -83,6 +98,9 @@ pub struct CostModel {
     pub s_per_sample: f32,
     /// Seconds per window pixel to convert and upscale a frame (smoothed).
     pub s_per_output_px: f32,
+    /// Seconds per rendered pixel to denoise a preview (smoothed; 0 until
+    /// measured on a still image).
+    pub s_per_denoised_px: f32,
 }
 
 impl Default for CostModel {
@@ -92,6 +110,7 @@ impl Default for CostModel {
         Self {
             s_per_sample: 1e-6,
             s_per_output_px: 2e-8,
+            s_per_denoised_px: 0.0,
         }
     }
 }
@@ -116,6 +135,24 @@ impl CostModel {
             let s = seconds / n_px as f32;
             self.s_per_output_px += COST_ALPHA * (s - self.s_per_output_px);
         }
+    }
+
+    /// Folds in denoising `n_px` rendered pixels in `seconds`.
+    pub fn observe_denoise(&mut self, n_px: u64, seconds: f32) {
+        if n_px > 0 && seconds.is_finite() && seconds >= 0.0 {
+            let s = seconds / n_px as f32;
+            if self.s_per_denoised_px == 0.0 {
+                self.s_per_denoised_px = s;
+            } else {
+                self.s_per_denoised_px += COST_ALPHA * (s - self.s_per_denoised_px);
+            }
+        }
+    }
+
+    /// Whether denoising a preview of `n_px` pixels fits half of
+    /// `budget_s`, by the measured cost (never before one was measured).
+    pub fn denoise_fits(&self, n_px: u64, budget_s: f32) -> bool {
+        self.s_per_denoised_px > 0.0 && self.s_per_denoised_px * n_px as f32 <= 0.5 * budget_s
     }
 
     /// Tracing time left in a frame of `budget_s` once the output of a
@@ -262,9 +299,42 @@ enum Job {
 }
 
 /// The render thread's loop: wait for work, do it, send the frame.
+/// The denoiser, loaded the first time a request asks for it.
+enum DenoiserSlot {
+    NotTried,
+    Ready(Denoiser),
+    Missing,
+}
+
+impl DenoiserSlot {
+    /// The denoiser when `settings` ask for one and it can be had.
+    fn get(&mut self, settings: &RenderSettings) -> Option<&Denoiser> {
+        if !settings.denoise {
+            return None;
+        }
+        if let DenoiserSlot::NotTried = self {
+            *self = match Denoiser::load(0) {
+                Ok(d) => DenoiserSlot::Ready(d),
+                Err(e) => {
+                    eprintln!("warning: frames stay noisy: {e}");
+                    DenoiserSlot::Missing
+                }
+            };
+        }
+        match self {
+            DenoiserSlot::Ready(d) => Some(d),
+            _ => None,
+        }
+    }
+}
+
+/// The still image being refined: its generation, film and feature buffers.
+type Still = (u64, Film, AovFilm);
+
 fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
     let mut costs = CostModel::default();
-    let mut film: Option<(u64, Film)> = None;
+    let mut film: Option<Still> = None;
+    let mut denoiser = DenoiserSlot::NotTried;
     let mut previewed: Option<u64> = None;
     let base_rotation = scene.environment.rotation_deg;
     let mut turned = 0.0f32;
@@ -278,8 +348,8 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 let r = state.request;
                 let refined = film
                     .as_ref()
-                    .filter(|(g, _)| *g == r.generation)
-                    .map(|(_, f)| f.n_samples());
+                    .filter(|(g, _, _)| *g == r.generation)
+                    .map(|(_, f, _)| f.n_samples());
                 // Cleared under the lock, so a request that comes after the
                 // job is taken always cancels it.
                 shared.cancel_refine.store(false, Ordering::Relaxed);
@@ -302,11 +372,13 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
             Job::Preview(r) => {
                 previewed = Some(r.generation);
                 scene.rig = r.rig;
-                preview(&scene, &r, &mut costs, &shared.cancel_preview)
+                let dn = denoiser.get(&r.settings);
+                preview(&scene, &r, &mut costs, dn, &shared.cancel_preview)
             }
             Job::Refine(r) => {
                 scene.rig = r.rig;
-                refine(&scene, &r, &mut costs, &mut film, &shared.cancel_refine)
+                let dn = denoiser.get(&r.settings);
+                refine(&scene, &r, &mut costs, &mut film, dn, &shared.cancel_refine)
             }
         };
         if let Some(frame) = frame
@@ -319,15 +391,32 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
 
 /// One moving frame at the resolution and samples the budget allows, or
 /// `None` when the camera came to rest meanwhile.
-fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &AtomicBool) -> Option<Frame> {
+fn preview(
+    scene: &RenderScene,
+    r: &Request,
+    costs: &mut CostModel,
+    denoiser: Option<&Denoiser>,
+    cancel: &AtomicBool,
+) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (scale, spp) = costs.preview_shape(w, h, r.frame_budget_s, r.max_scale);
     let (pw, ph) = scaled_size(w, h, scale);
+    let n_px = u64::from(pw) * u64::from(ph);
+    let denoiser = denoiser.filter(|_| costs.denoise_fits(n_px, r.frame_budget_s));
     let mut film = Film::new(pw, ph);
+    let mut aovs = AovFilm::new(pw, ph);
     let start = Instant::now();
-    render_samples_cancellable(scene, &r.settings, &mut film, 0..spp, cancel)?;
+    if denoiser.is_some() {
+        render_samples_aov_cancellable(scene, &r.settings, &mut film, &mut aovs, 0..spp, cancel)?;
+    } else {
+        render_samples_cancellable(scene, &r.settings, &mut film, 0..spp, cancel)?;
+    }
     let render_s = start.elapsed().as_secs_f32();
-    costs.observe_trace(u64::from(pw) * u64::from(ph) * u64::from(spp), render_s);
+    costs.observe_trace(n_px * u64::from(spp), render_s);
+    let (film, denoise_s) = match denoiser {
+        Some(d) => denoise(d, film, &aovs, Quality::Fast, costs),
+        None => (film, None),
+    };
     let (pixels, output_s) = output(&film, w, h, r.settings.tonemap, costs);
     Some(Frame {
         generation: r.generation,
@@ -339,7 +428,32 @@ fn preview(scene: &RenderScene, r: &Request, costs: &mut CostModel, cancel: &Ato
         refined: false,
         render_s,
         output_s,
+        denoise_s: denoise_s.unwrap_or(0.0),
+        denoised: denoise_s.is_some(),
     })
+}
+
+/// `film` denoised with the guide of `aovs` (the noisy film when OIDN
+/// fails, with a warning), and the seconds it took when it worked.
+fn denoise(
+    denoiser: &Denoiser,
+    film: Film,
+    aovs: &AovFilm,
+    quality: Quality,
+    costs: &mut CostModel,
+) -> (Film, Option<f32>) {
+    let start = Instant::now();
+    match denoiser.denoise_film(&film, Some(aovs), quality) {
+        Ok((out, _)) => {
+            let secs = start.elapsed().as_secs_f32();
+            costs.observe_denoise(u64::from(film.width()) * u64::from(film.height()), secs);
+            (out, Some(secs))
+        }
+        Err(e) => {
+            eprintln!("warning: denoising failed, showing the noisy frame: {e}");
+            (film, None)
+        }
+    }
 }
 
 /// One more pass of the still camera at the request's still scale, or
@@ -348,14 +462,15 @@ fn refine(
     scene: &RenderScene,
     r: &Request,
     costs: &mut CostModel,
-    film: &mut Option<(u64, Film)>,
+    film: &mut Option<Still>,
+    denoiser: Option<&Denoiser>,
     cancel: &AtomicBool,
 ) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (rw, rh) = scaled_size(w, h, r.still_scale);
-    let (_, f) = match film.take() {
-        Some((g, f)) if g == r.generation && (f.width(), f.height()) == (rw, rh) => film.insert((g, f)),
-        _ => film.insert((r.generation, Film::new(rw, rh))),
+    let (_, f, aovs) = match film.take() {
+        Some((g, f, a)) if g == r.generation && (f.width(), f.height()) == (rw, rh) => film.insert((g, f, a)),
+        _ => film.insert((r.generation, Film::new(rw, rh), AovFilm::new(rw, rh))),
     };
     let n = f.n_samples();
     let k = costs
@@ -363,13 +478,28 @@ fn refine(
         .min(r.max_spp.max(1).saturating_sub(n))
         .max(1);
     let start = Instant::now();
-    if render_samples_cancellable(scene, &r.settings, f, n..n + k, cancel).is_none() {
+    // The buffers are recorded from the first pass on whenever denoising is
+    // on, so they always hold the film's samples.
+    let record = r.settings.denoise && aovs.n_samples() == n;
+    let done = if record {
+        render_samples_aov_cancellable(scene, &r.settings, f, aovs, n..n + k, cancel)
+    } else {
+        render_samples_cancellable(scene, &r.settings, f, n..n + k, cancel)
+    };
+    if done.is_none() {
         *film = None;
         return None;
     }
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(u64::from(rw) * u64::from(rh) * u64::from(k), render_s);
-    let (pixels, output_s) = output(f, w, h, r.settings.tonemap, costs);
+    let (denoised, denoise_s) = match denoiser.filter(|_| record) {
+        Some(d) => {
+            let (out, secs) = denoise(d, f.clone(), aovs, Quality::High, costs);
+            (Some(out).filter(|_| secs.is_some()), secs)
+        }
+        None => (None, None),
+    };
+    let (pixels, output_s) = output(denoised.as_ref().unwrap_or(f), w, h, r.settings.tonemap, costs);
     Some(Frame {
         generation: r.generation,
         rig: r.rig,
@@ -380,6 +510,8 @@ fn refine(
         refined: true,
         render_s,
         output_s,
+        denoise_s: denoise_s.unwrap_or(0.0),
+        denoised: denoise_s.is_some(),
     })
 }
 

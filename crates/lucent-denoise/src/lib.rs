@@ -1,0 +1,293 @@
+//! Denoising of Lucent's path-traced images with Intel Open Image Denoise
+//! (OIDN), the denoiser Blender Cycles and most production renderers ship.
+//!
+//! OIDN is loaded at run time (`dlopen` through `libloading`), so Lucent
+//! builds, tests and runs on a machine without it; only a denoise request
+//! needs it, and without it [`Denoiser::load`] returns
+//! [`DenoiseError::NotInstalled`], whose message says how to install it
+//! (`cargo xtask oidn` fetches the official 2.x Linux binaries from PyPI's
+//! `pyoidn` into `target/oidn/lib`). Where it looks, in order:
+//! 1. `$LUCENT_OIDN`: the library file, or a directory holding it (when
+//!    set, the only place looked);
+//! 2. `target/oidn/lib` beside the running program (`../oidn/lib` from
+//!    `target/release/lucent`, `../../oidn/lib` from a test binary in
+//!    `target/debug/deps`), and the same under the current directory;
+//! 3. the system's library path (`libOpenImageDenoise.so.2`).
+//!
+//! The filter is OIDN's `RT` (ray-traced images), HDR, guided by the albedo
+//! and normal feature buffers ([`lucent_render::aov`]). Input is checked
+//! before it reaches OIDN: sizes must match, and a NaN, infinite or
+//! negative value in any buffer becomes 0 (counted in [`Denoised`]).
+//! Device errors become [`DenoiseError::Oidn`] with OIDN's message.
+//! All `unsafe` code is in `ffi.rs`.
+//!
+//! ```no_run
+//! use lucent_denoise::{Denoiser, Quality};
+//! let denoiser = Denoiser::load(0)?; // fails with install advice without OIDN
+//! let (w, h) = (2, 1);
+//! let color = vec![0.5f32; w * h * 3];
+//! let out = denoiser.denoise(w, h, &color, None, None, Quality::High)?;
+//! assert_eq!(out.pixels.len(), color.len());
+//! # Ok::<(), lucent_denoise::DenoiseError>(())
+//! ```
+
+mod ffi;
+
+use lucent_geom::Vec3;
+use lucent_render::Film;
+use lucent_render::aov::AovFilm;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// The library's file name on Linux (OIDN 2's soname).
+pub const LIBRARY_NAME: &str = "libOpenImageDenoise.so.2";
+
+/// The environment variable that names the library or its directory.
+pub const ENV_VAR: &str = "LUCENT_OIDN";
+
+/// What went wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum DenoiseError {
+    /// No usable library was found.
+    #[error(
+        "Intel Open Image Denoise is not installed (looked for {LIBRARY_NAME} in: {tried}). \
+Install it with `cargo xtask oidn` (unpacks the official OIDN 2 binaries from PyPI's pyoidn under target/oidn/lib), \
+or set {ENV_VAR} to the library file or its directory"
+    )]
+    NotInstalled {
+        /// Every place looked, with why each failed.
+        tried: String,
+    },
+    /// The buffers do not describe one image.
+    #[error("denoise: {0}")]
+    BadInput(String),
+    /// OIDN reported an error.
+    #[error("Intel Open Image Denoise failed: {0}")]
+    Oidn(String),
+}
+
+/// OIDN's speed-for-quality setting of the `RT` filter.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quality {
+    /// Best quality (OIDN's default for final frames).
+    High,
+    /// Faster, for interactive previews.
+    Balanced,
+    /// Fastest.
+    Fast,
+}
+
+impl Quality {
+    fn oidn(self) -> std::ffi::c_int {
+        match self {
+            Quality::High => 6,
+            Quality::Balanced => 5,
+            Quality::Fast => 4,
+        }
+    }
+}
+
+/// A denoised image.
+#[derive(Clone, Debug)]
+pub struct Denoised {
+    /// Interleaved RGB, row-major, row 0 at the top.
+    pub pixels: Vec<f32>,
+    /// Input values that were NaN, infinite or negative and were replaced
+    /// by 0 before denoising.
+    pub replaced: usize,
+    /// Wall time of the filter (setup and execution).
+    pub elapsed: Duration,
+}
+
+/// A loaded OIDN library with a committed CPU device; one filter runs at a
+/// time (calls from several threads wait for each other).
+pub struct Denoiser {
+    device: Mutex<ffi::OidnDevice>,
+    path: PathBuf,
+}
+
+impl std::fmt::Debug for Denoiser {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Denoiser").field("path", &self.path).finish()
+    }
+}
+
+/// The places [`Denoiser::load`] tries, in order.
+pub fn candidates() -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Some(v) = std::env::var_os(ENV_VAR).filter(|v| !v.is_empty()) {
+        let p = PathBuf::from(v);
+        out.push(if p.is_dir() { p.join(LIBRARY_NAME) } else { p });
+        return out;
+    }
+    let mut bases: Vec<PathBuf> = Vec::new();
+    if let Ok(exe) = std::env::current_exe() {
+        // target/<profile>/lucent and target/<profile>/deps/<test>.
+        for up in exe.ancestors().skip(2).take(2) {
+            bases.push(up.to_owned());
+        }
+    }
+    if let Ok(cwd) = std::env::current_dir() {
+        bases.push(cwd.join("target"));
+    }
+    for b in bases {
+        let p = b.join("oidn").join("lib").join(LIBRARY_NAME);
+        if !out.contains(&p) {
+            out.push(p);
+        }
+    }
+    // The dynamic linker's own search.
+    out.push(PathBuf::from(LIBRARY_NAME));
+    out
+}
+
+impl Denoiser {
+    /// Finds and loads OIDN (see the crate docs) and commits a CPU device
+    /// with `threads` threads (0: all).
+    pub fn load(threads: usize) -> Result<Denoiser, DenoiseError> {
+        Self::load_from(&candidates(), threads)
+    }
+
+    /// [`Denoiser::load`] from the first of `paths` that loads (a bare file
+    /// name goes to the dynamic linker's search).
+    pub fn load_from(paths: &[PathBuf], threads: usize) -> Result<Denoiser, DenoiseError> {
+        let mut tried = Vec::new();
+        for path in paths.iter().cloned() {
+            let bare = path.components().count() == 1;
+            if !bare && !path.is_file() {
+                tried.push(format!("{} (absent)", path.display()));
+                continue;
+            }
+            match ffi::Api::load(&path) {
+                Ok(api) => {
+                    let device = ffi::OidnDevice::new(api, threads).map_err(DenoiseError::Oidn)?;
+                    return Ok(Denoiser {
+                        device: Mutex::new(device),
+                        path,
+                    });
+                }
+                Err(e) => tried.push(format!("{} ({e})", path.display())),
+            }
+        }
+        Err(DenoiseError::NotInstalled {
+            tried: tried.join("; "),
+        })
+    }
+
+    /// The library file in use.
+    pub fn library(&self) -> &Path {
+        &self.path
+    }
+
+    /// Denoises a `width` x `height` HDR image (`color`: interleaved linear
+    /// RGB), guided by `albedo` and `normal` when given (OIDN takes the
+    /// normal only with the albedo). Every buffer must hold
+    /// `width * height * 3` floats.
+    pub fn denoise(
+        &self,
+        width: usize,
+        height: usize,
+        color: &[f32],
+        albedo: Option<&[f32]>,
+        normal: Option<&[f32]>,
+        quality: Quality,
+    ) -> Result<Denoised, DenoiseError> {
+        let start = Instant::now();
+        let n = width
+            .checked_mul(height)
+            .and_then(|p| p.checked_mul(3))
+            .filter(|&n| n > 0)
+            .ok_or_else(|| DenoiseError::BadInput(format!("a {width}x{height} image has no pixels")))?;
+        let check = |name: &str, b: &[f32]| {
+            if b.len() == n {
+                Ok(())
+            } else {
+                Err(DenoiseError::BadInput(format!(
+                    "the {name} buffer holds {} floats, a {width}x{height} RGB image {n}",
+                    b.len()
+                )))
+            }
+        };
+        check("color", color)?;
+        if let Some(a) = albedo {
+            check("albedo", a)?;
+        }
+        if let Some(nrm) = normal {
+            check("normal", nrm)?;
+            if albedo.is_none() {
+                return Err(DenoiseError::BadInput(
+                    "OIDN takes a normal buffer only with an albedo buffer".into(),
+                ));
+            }
+        }
+        let mut replaced = 0;
+        let mut clean = |b: &[f32], allow_negative: bool| -> Vec<f32> {
+            b.iter()
+                .map(|&v| {
+                    if v.is_finite() && (allow_negative || v >= 0.0) {
+                        v
+                    } else {
+                        replaced += 1;
+                        0.0
+                    }
+                })
+                .collect()
+        };
+        let color = clean(color, false);
+        let albedo = albedo.map(|a| clean(a, false));
+        let normal = normal.map(|a| clean(a, true));
+        let mut output = vec![0.0f32; n];
+        let device = self
+            .device
+            .lock()
+            .map_err(|_| DenoiseError::Oidn("a previous denoise panicked".into()))?;
+        device
+            .run_rt(
+                ffi::Images {
+                    width,
+                    height,
+                    color: &color,
+                    albedo: albedo.as_deref(),
+                    normal: normal.as_deref(),
+                    output: &mut output,
+                },
+                quality.oidn(),
+            )
+            .map_err(DenoiseError::Oidn)?;
+        Ok(Denoised {
+            pixels: output,
+            replaced,
+            elapsed: start.elapsed(),
+        })
+    }
+
+    /// Denoises a film guided by its AOVs (used when they hold samples and
+    /// match its size), into a one-sample film of the same size.
+    pub fn denoise_film(
+        &self,
+        film: &Film,
+        aovs: Option<&AovFilm>,
+        quality: Quality,
+    ) -> Result<(Film, Denoised), DenoiseError> {
+        let (w, h) = (film.width(), film.height());
+        let aov = aovs
+            .filter(|a| a.n_samples() > 0 && (a.width(), a.height()) == (w, h))
+            .map(AovFilm::images);
+        let d = self.denoise(
+            w as usize,
+            h as usize,
+            &film.to_linear_rgb(),
+            aov.as_ref().map(|a| a.albedo.as_slice()),
+            aov.as_ref().map(|a| a.normal.as_slice()),
+            quality,
+        )?;
+        let pixels = d.pixels.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let out = Film::from_pixels(w, h, pixels)
+            .ok_or_else(|| DenoiseError::BadInput("the denoised image has the wrong size".into()))?;
+        Ok((out, d))
+    }
+}
+
+#[cfg(test)]
+mod tests;
