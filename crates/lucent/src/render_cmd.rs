@@ -121,10 +121,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     if let Some(share) = args.farm.part {
         crate::farm::check_part(share, &scene.settings)?;
-        if scene.settings.denoise || !args.aov.is_empty() {
+        if scene.settings.denoise {
             bail!(
-                "--part {share} with --denoise or --aov is refused: a share holds some of every pixel's samples, \
-                 not an image to denoise, and partial files carry no feature buffers; render the shares without them"
+                "--part {share} with --denoise is refused: a share holds some of every pixel's samples, \
+                 not an image to denoise; render the shares without it"
             );
         }
     }

@@ -149,3 +149,28 @@ fn denoise_renders_where_oidn_is_installed() {
         roughness(&n)
     );
 }
+
+#[test]
+fn a_share_of_a_split_render_is_not_denoised() {
+    let dir = scratch("denoise", "part");
+    let out = lucent()
+        .args([
+            "render",
+            CORNELL,
+            "--size",
+            "8x8",
+            "--spp",
+            "4",
+            "--part",
+            "1/2",
+            "--denoise",
+            "--partial",
+        ])
+        .arg(dir.join("p.lpart"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.contains("--part 1/2 with --denoise is refused"), "{err}");
+    assert!(!dir.join("p.lpart").exists(), "nothing is written");
+}
