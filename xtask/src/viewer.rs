@@ -15,11 +15,13 @@
 
 use crate::{cargo, has_program, root, run};
 use lucent_render::metrics::median;
-use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{Receiver, channel};
+#[path = "../../crates/lucent/tests/common/xdo.rs"]
+mod xdo;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+use xdo::{Viewer, field, find_window, xdotool};
 
 /// Options shared by both tasks.
 struct Opts {
@@ -88,63 +90,19 @@ fn release_binary(build: bool) -> Result<PathBuf, String> {
     }
 }
 
-/// The viewer with its stdout lines arriving, each stamped when read.
-struct Viewer {
-    child: Child,
-    lines: Receiver<(Instant, String)>,
+/// Starts the viewer with its stderr piped (read back by `finish`).
+fn start_viewer(bin: &Path, args: &[&str]) -> Result<Viewer, String> {
+    Viewer::start(bin, args, &std::env::temp_dir(), Stdio::piped())
 }
 
-impl Viewer {
-    fn start(bin: &PathBuf, args: &[&str]) -> Result<Self, String> {
-        let mut child = Command::new(bin)
-            .arg("view")
-            .args(args)
-            .current_dir(std::env::temp_dir())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .map_err(|e| format!("cannot start {}: {e}", bin.display()))?;
-        let stdout = child.stdout.take().ok_or("no stdout")?;
-        let (tx, lines) = channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                if tx.send((Instant::now(), line)).is_err() {
-                    break;
-                }
-            }
-        });
-        Ok(Self { child, lines })
+/// Waits for the viewer to exit; returns success and its stderr.
+fn finish(mut viewer: Viewer) -> Result<(bool, String), String> {
+    let status = viewer.child.wait().map_err(|e| e.to_string())?;
+    let mut err = String::new();
+    if let Some(mut e) = viewer.child.stderr.take() {
+        let _ = std::io::Read::read_to_string(&mut e, &mut err);
     }
-
-    /// Waits for the viewer to exit; returns success and its stderr.
-    fn finish(mut self) -> Result<(bool, String), String> {
-        let status = self.child.wait().map_err(|e| e.to_string())?;
-        let mut err = String::new();
-        if let Some(mut e) = self.child.stderr.take() {
-            let _ = std::io::Read::read_to_string(&mut e, &mut err);
-        }
-        Ok((status.success(), err))
-    }
-}
-
-/// The number after `"key":` in a JSON line.
-fn field(line: &str, key: &str) -> Option<f64> {
-    let pat = format!("\"{key}\":");
-    let rest = &line[line.find(&pat)? + pat.len()..];
-    let end = rest.find([',', '}', ']']).unwrap_or(rest.len());
-    rest[..end].trim().trim_start_matches('[').parse().ok()
-}
-
-fn xdotool(args: &[String]) -> Result<(), String> {
-    let out = Command::new("xdotool")
-        .args(args)
-        .output()
-        .map_err(|e| format!("cannot run xdotool ({e}); apt-get install xdotool"))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!("xdotool {args:?}: {}", String::from_utf8_lossy(&out.stderr)))
-    }
+    Ok((status.success(), err))
 }
 
 fn strings(args: &[&str]) -> Vec<String> {
@@ -168,10 +126,10 @@ pub fn bench(args: &[String]) -> Result<(), String> {
         .split_once('x')
         .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
         .ok_or_else(|| format!("--size: '{}' is not WxH", o.size))?;
-    let viewer = Viewer::start(&bin, &["--size", &o.size, "--stats"])?;
+    let viewer = start_viewer(&bin, &["--size", &o.size, "--stats"])?;
     let res = bench_cycles(&viewer, &o, w, h);
-    let _ = xdotool(&strings(&["key", "--delay", "100", "Escape"]));
-    let (ok, err) = viewer.finish()?;
+    let _ = xdotool(&["key", "--delay", "100", "Escape"]);
+    let (ok, err) = finish(viewer)?;
     let summary = res?;
     if !ok {
         return Err(format!("the viewer failed: {err}"));
@@ -181,29 +139,9 @@ pub fn bench(args: &[String]) -> Result<(), String> {
 }
 
 fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, String> {
-    let out = Command::new("timeout")
-        .args([
-            "60",
-            "xdotool",
-            "search",
-            "--sync",
-            "--onlyvisible",
-            "--name",
-            "^Lucent - ",
-        ])
-        .output()
-        .map_err(|e| e.to_string())?;
-    let win = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .next()
-        .unwrap_or_default()
-        .trim()
-        .to_owned();
-    if win.is_empty() {
-        return Err("no viewer window appeared".to_owned());
-    }
-    xdotool(&strings(&["windowfocus", "--sync", &win]))?;
-    xdotool(&strings(&["mousemove", "--window", &win, "100", &(h / 2).to_string()]))?;
+    let win = find_window()?;
+    xdotool(&["windowfocus", "--sync", &win])?;
+    xdotool(&["mousemove", "--window", &win, "100", &(h / 2).to_string()])?;
     // Warm up: the first full-resolution frames.
     std::thread::sleep(Duration::from_secs(3));
     let (mut fps, mut frame_ms, mut scales, mut release_ms, mut release_internal_ms) =
@@ -211,9 +149,9 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
     for _ in 0..o.cycles {
         while viewer.lines.try_recv().is_ok() {}
         let y = (h / 2).to_string();
-        xdotool(&strings(&["mousemove", "--window", &win, "100", &y]))?;
+        xdotool(&["mousemove", "--window", &win, "100", &y])?;
         std::thread::sleep(Duration::from_millis(200));
-        xdotool(&strings(&["mousedown", "1"]))?;
+        xdotool(&["mousedown", "1"])?;
         std::thread::sleep(Duration::from_millis(100));
         // One xdotool process moves the pointer every 10 ms, sweeping back
         // and forth, and releases the button right after the last move.
@@ -306,11 +244,10 @@ pub fn soak(args: &[String]) -> Result<(), String> {
     let bin = release_binary(o.build)?;
     let seconds = o.seconds.to_string();
     let seed = o.seed.to_string();
-    let viewer = Viewer::start(
+    let viewer = start_viewer(
         &bin,
         &["--size", &o.size, "--stats", "--soak", &seconds, "--soak-seed", &seed],
     )?;
-    let status_path = format!("/proc/{}/status", viewer.child.id());
     let mut rss_kb: Vec<(f64, f64)> = Vec::new();
     let (mut frames, mut bad) = (0u64, Vec::new());
     let start = Instant::now();
@@ -331,11 +268,7 @@ pub fn soak(args: &[String]) -> Result<(), String> {
         }
         let t = start.elapsed().as_secs_f64();
         if rss_kb.last().is_none_or(|&(last, _)| t - last >= 0.5)
-            && let Some(kb) = std::fs::read_to_string(&status_path).ok().and_then(|s| {
-                s.lines()
-                    .find(|l| l.starts_with("VmRSS:"))
-                    .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-            })
+            && let Some(kb) = viewer.rss_kb()
         {
             rss_kb.push((t, kb));
         }
@@ -343,7 +276,7 @@ pub fn soak(args: &[String]) -> Result<(), String> {
             return Err("the soak did not end in time".to_owned());
         }
     }
-    let (ok, err) = viewer.finish()?;
+    let (ok, err) = finish(viewer)?;
     let inputs = err
         .lines()
         .find_map(|l| l.strip_prefix("soak: ")?.split_whitespace().next()?.parse::<u64>().ok())

@@ -6,15 +6,17 @@
 //! so a slow, loaded machine only makes it slower.
 
 mod common;
+#[path = "common/xdo.rs"]
+mod xdo;
 
 use common::scratch;
 use lucent_scene::components::Texture;
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
+use std::process::{Command, Stdio};
+use std::sync::mpsc::RecvTimeoutError;
 use std::sync::{Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
+use xdo::field;
 
 /// How long to wait for anything before giving up.
 const PATIENCE: Duration = Duration::from_secs(120);
@@ -42,14 +44,6 @@ struct Stat {
     theta: f64,
     phi: f64,
     center: [f64; 3],
-}
-
-/// The number after `"key":` in a JSON line.
-fn field(line: &str, key: &str) -> Option<f64> {
-    let pat = format!("\"{key}\":");
-    let rest = &line[line.find(&pat)? + pat.len()..];
-    let end = rest.find([',', '}', ']']).unwrap_or(rest.len());
-    rest[..end].trim().trim_start_matches('[').parse().ok()
 }
 
 fn parse(line: &str) -> Option<Stat> {
@@ -92,36 +86,19 @@ fn missing_tools(need_xdotool: bool) -> Option<String> {
     None
 }
 
-/// A running viewer, its stats lines arriving on a channel; killed on drop
-/// if the test fails before it quits.
+/// The viewer under test, its stderr in `dir/stderr.txt`.
 struct Viewer {
-    child: Child,
-    lines: Receiver<String>,
+    inner: xdo::Viewer,
     dir: PathBuf,
 }
 
 impl Viewer {
     fn start(dir: &Path, args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_lucent"))
-            .arg("view")
-            .args(args)
-            .current_dir(dir)
-            .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(dir.join("stderr.txt")).unwrap())
-            .spawn()
-            .unwrap();
-        let stdout = child.stdout.take().unwrap();
-        let (tx, lines) = channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                if tx.send(line).is_err() {
-                    break;
-                }
-            }
-        });
+        let stderr = std::fs::File::create(dir.join("stderr.txt")).unwrap();
+        let bin = Path::new(env!("CARGO_BIN_EXE_lucent"));
+        let inner = xdo::Viewer::start(bin, args, dir, stderr.into()).unwrap_or_else(|e| panic!("{e}"));
         Self {
-            child,
-            lines,
+            inner,
             dir: dir.to_owned(),
         }
     }
@@ -138,8 +115,8 @@ impl Viewer {
         loop {
             let done = last.as_ref().is_some_and(|s| s.refined && s.samples >= MAX_SPP);
             let wait = if done { QUIET } else { Duration::from_millis(500) };
-            match self.lines.recv_timeout(wait) {
-                Ok(line) => {
+            match self.inner.lines.recv_timeout(wait) {
+                Ok((_, line)) => {
                     assert!(!line.contains("null"), "non-finite value: {line}");
                     last = Some(parse(&line).unwrap_or_else(|| panic!("unreadable stats line: {line}")));
                 }
@@ -154,7 +131,7 @@ impl Viewer {
     fn wait_exit(&mut self) -> std::process::ExitStatus {
         let deadline = Instant::now() + PATIENCE;
         loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
+            if let Some(status) = self.inner.child.try_wait().unwrap() {
                 return status;
             }
             assert!(Instant::now() < deadline, "the viewer did not quit");
@@ -163,45 +140,16 @@ impl Viewer {
     }
 }
 
-impl Drop for Viewer {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
 fn xdotool(args: &[&str]) -> String {
-    let out = Command::new("xdotool").args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "xdotool {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).trim().to_owned()
+    xdo::xdotool(args).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn sleep_ms(ms: u64) {
     std::thread::sleep(Duration::from_millis(ms));
 }
 
-/// The viewer's window id (the only Lucent window: tests take turns).
 fn find_window() -> String {
-    let out = Command::new("timeout")
-        .args([
-            "60",
-            "xdotool",
-            "search",
-            "--sync",
-            "--onlyvisible",
-            "--name",
-            "^Lucent - ",
-        ])
-        .output()
-        .unwrap();
-    let id = String::from_utf8_lossy(&out.stdout);
-    let id = id.lines().next().unwrap_or_default().trim().to_owned();
-    assert!(!id.is_empty(), "no viewer window appeared");
-    id
+    xdo::find_window().unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Grabs the window's pixels as X shows them.
@@ -350,18 +298,12 @@ fn short_soak_of_random_input_keeps_the_camera_finite_and_memory_bounded() {
         &dir,
         &["--size", "160x90", "--stats", "--soak", "6", "--soak-seed", "11"],
     );
-    let pid = viewer.child.id();
-    let rss_kb = || {
-        let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-        let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
-        line.split_whitespace().nth(1)?.parse::<u64>().ok()
-    };
     let mut rss = Vec::new();
     let mut frames = 0;
     let deadline = Instant::now() + PATIENCE;
     loop {
-        match viewer.lines.recv_timeout(Duration::from_millis(200)) {
-            Ok(line) => {
+        match viewer.inner.lines.recv_timeout(Duration::from_millis(200)) {
+            Ok((_, line)) => {
                 assert!(!line.contains("null"), "non-finite value: {line}");
                 let s = parse(&line).unwrap_or_else(|| panic!("unreadable: {line}"));
                 assert!(s.radius > 0.0 && s.theta.abs() < 1.571, "{s:?}");
@@ -370,7 +312,7 @@ fn short_soak_of_random_input_keeps_the_camera_finite_and_memory_bounded() {
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => break,
         }
-        rss.extend(rss_kb());
+        rss.extend(viewer.inner.rss_kb());
         assert!(Instant::now() < deadline, "the soak did not end");
     }
     let status = viewer.wait_exit();
@@ -383,7 +325,10 @@ fn short_soak_of_random_input_keeps_the_camera_finite_and_memory_bounded() {
     // 60-second soak (`cargo xtask soak`) checks flatness more closely.
     let half = rss.len() / 2;
     assert!(half > 2, "too few RSS samples: {rss:?}");
-    let first = rss[..half].iter().copied().max().unwrap();
-    let second = rss[half..].iter().copied().max().unwrap();
-    assert!(second < first + 16 * 1024, "RSS grew from {first} kB to {second} kB");
+    let first = rss[..half].iter().copied().fold(0.0, f64::max);
+    let second = rss[half..].iter().copied().fold(0.0, f64::max);
+    assert!(
+        second < first + 16.0 * 1024.0,
+        "RSS grew from {first} kB to {second} kB"
+    );
 }
