@@ -11,12 +11,16 @@
 //! the closest hits against another tracer's hits file and classifies every
 //! disagreement (see [`compare`]).
 
+#[path = "../../lucent/src/named_arg.rs"]
+mod named_arg;
+
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use lucent_accel::{BuildParams, BuildQuality, MeshBvh, TraversalCounts};
 use lucent_geom::{Named, Ray, TriMesh, TriangleTest, Vec3};
 use lucent_render::metrics::median;
 use lucent_render::with_threads;
+use named_arg::named;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -63,13 +67,6 @@ pub struct RaysBenchArgs {
     /// (to compare the two in one binary).
     #[arg(long)]
     portable: bool,
-}
-
-/// A flag whose values are a [`Named`] enum's names.
-fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
-    use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(T::NAMES.iter().map(|&(n, _)| n))
-        .try_map(|name| T::from_name(&name).ok_or_else(|| format!("expected {}", T::name_list())))
 }
 
 /// `s` as a JSON string literal, quotes and escapes included.

@@ -12,16 +12,17 @@ mod builtin;
 mod farm;
 mod info_cmd;
 mod merge_cmd;
+mod named_arg;
 mod render_cmd;
 mod viewer;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use lucent_assets::LoadReport;
-use lucent_geom::Named;
 use lucent_render::quality::{self, QualityPreset};
 use lucent_render::{ExtractOptions, RenderOverrides};
 use lucent_scene::{Integrator, Scene, Shading, Tonemap};
+use named_arg::named;
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -170,14 +171,6 @@ impl QualityArgs {
             ..RenderOverrides::NONE
         }
     }
-}
-
-/// A flag whose values are a [`Named`] enum's names (listed in `--help`
-/// and in the error for any other value).
-fn named<T: Named>() -> impl clap::builder::TypedValueParser<Value = T> {
-    use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(T::NAMES.iter().map(|&(n, _)| n))
-        .try_map(|name| T::from_name(&name).ok_or_else(|| format!("expected {}", T::name_list())))
 }
 
 /// `--help` for `--preset`: every preset with its one-line description.
