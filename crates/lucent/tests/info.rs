@@ -24,27 +24,35 @@ fn info(file: &Path) -> Result<Value, (Option<i32>, String)> {
     serde_json::from_slice(&out.stdout).map_err(|e| (Some(0), format!("not JSON: {e}")))
 }
 
-#[test]
-fn every_manifest_model_reports_its_triangle_count() {
+/// The manifest's rows with a `KEY=N` count: each row's file and that
+/// count; `None` (after saying so) where the shared assets are absent.
+fn manifest_counts(key: &str) -> Option<(std::path::PathBuf, Vec<(String, u64)>)> {
     let dir = repo_root().join("../shared/assets");
     let Ok(manifest) = std::fs::read_to_string(dir.join("MANIFEST.tsv")) else {
         eprintln!("skipped: {} is absent", dir.display());
+        return None;
+    };
+    let prefix = format!("{key}=");
+    let rows = manifest
+        .lines()
+        .skip(1)
+        .filter_map(|row| {
+            let cols: Vec<&str> = row.split('\t').collect();
+            let count = cols.get(3)?.split_whitespace().find_map(|c| c.strip_prefix(&prefix))?;
+            Some(((*cols.first()?).to_owned(), count.parse().ok()?))
+        })
+        .collect();
+    Some((dir, rows))
+}
+
+#[test]
+fn every_manifest_model_reports_its_triangle_count() {
+    let Some((dir, rows)) = manifest_counts("tris") else {
         return;
     };
     let mut checked = 0;
-    for row in manifest.lines().skip(1) {
-        let cols: Vec<&str> = row.split('\t').collect();
-        let (Some(file), Some(counts)) = (cols.first(), cols.get(3)) else {
-            continue;
-        };
-        let Some(tris) = counts
-            .split_whitespace()
-            .find_map(|c| c.strip_prefix("tris="))
-            .and_then(|n| n.parse::<u64>().ok())
-        else {
-            continue;
-        };
-        let json = info(&dir.join(file)).unwrap_or_else(|e| panic!("{file}: {e:?}"));
+    for (file, tris) in rows {
+        let json = info(&dir.join(&file)).unwrap_or_else(|e| panic!("{file}: {e:?}"));
         assert_eq!(json["kind"], "mesh", "{file}");
         assert_eq!(json["triangles"].as_u64(), Some(tris), "{file}");
         let vertices = json["vertices"].as_u64().unwrap_or(0);
@@ -63,25 +71,12 @@ fn every_manifest_model_reports_its_triangle_count() {
 
 #[test]
 fn gltf_files_report_their_manifest_triangle_counts() {
-    let dir = repo_root().join("../shared/assets");
-    let Ok(manifest) = std::fs::read_to_string(dir.join("MANIFEST.tsv")) else {
-        eprintln!("skipped: {} is absent", dir.display());
+    let Some((dir, rows)) = manifest_counts("gltf_tris") else {
         return;
     };
     let mut checked = 0;
-    for row in manifest.lines().skip(1) {
-        let cols: Vec<&str> = row.split('\t').collect();
-        let (Some(file), Some(counts)) = (cols.first(), cols.get(3)) else {
-            continue;
-        };
-        let Some(tris) = counts
-            .split_whitespace()
-            .find_map(|c| c.strip_prefix("gltf_tris="))
-            .and_then(|n| n.parse::<u64>().ok())
-        else {
-            continue;
-        };
-        match info(&dir.join(file)) {
+    for (file, tris) in rows {
+        match info(&dir.join(&file)) {
             Ok(json) => {
                 assert_eq!(json["kind"], "scene", "{file}");
                 assert_eq!(json["instanced_triangles"].as_u64(), Some(tris), "{file}");
