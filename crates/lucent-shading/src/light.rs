@@ -65,34 +65,18 @@ impl Light {
                     intensity,
                 })
             }
-            Light::Point { position, intensity } => {
-                let d = position - p;
-                let dist2 = d.length_squared();
-                let to_light = d.try_normalize()?;
-                Some(LightSample {
-                    to_light,
-                    distance: dist2.sqrt(),
-                    intensity: intensity / dist2,
-                })
-            }
+            Light::Point { position, intensity } => from_point(position, p, |_, dist2| Some(intensity / dist2)),
             Light::Spot {
                 position,
                 direction,
                 intensity,
                 inner_cone,
                 outer_cone,
-            } => {
-                let d = position - p;
-                let dist2 = d.length_squared();
-                let to_light = d.try_normalize()?;
+            } => from_point(position, p, |to_light, dist2| {
                 let axis = direction.try_normalize()?;
                 let falloff = spot_falloff(-to_light.dot(axis), inner_cone, outer_cone);
-                Some(LightSample {
-                    to_light,
-                    distance: dist2.sqrt(),
-                    intensity: intensity * (falloff / dist2),
-                })
-            }
+                Some(intensity * (falloff / dist2))
+            }),
         }
     }
 
@@ -112,28 +96,26 @@ impl Light {
     }
 
     /// The same light moved by `offset` (directional lights do not move).
-    pub fn translated(self, offset: Vec3) -> Light {
-        match self {
-            Light::Point { position, intensity } => Light::Point {
-                position: position + offset,
-                intensity,
-            },
-            Light::Spot {
-                position,
-                direction,
-                intensity,
-                inner_cone,
-                outer_cone,
-            } => Light::Spot {
-                position: position + offset,
-                direction,
-                intensity,
-                inner_cone,
-                outer_cone,
-            },
-            directional @ Light::Directional { .. } => directional,
+    pub fn translated(mut self, offset: Vec3) -> Light {
+        if let Light::Point { position, .. } | Light::Spot { position, .. } = &mut self {
+            *position += offset;
         }
+        self
     }
+}
+
+/// What `p` sees of a light at `position` (a point or a spot):
+/// `intensity(to_light, squared distance)` gives what arrives; `None` when
+/// `p` sits on the light or `intensity` has none.
+fn from_point(position: Vec3, p: Vec3, intensity: impl FnOnce(Vec3, f32) -> Option<Vec3>) -> Option<LightSample> {
+    let d = position - p;
+    let dist2 = d.length_squared();
+    let to_light = d.try_normalize()?;
+    Some(LightSample {
+        to_light,
+        distance: dist2.sqrt(),
+        intensity: intensity(to_light, dist2)?,
+    })
 }
 
 /// The spot falloff for `cos_angle` off the axis: 1 inside the inner cone,

@@ -342,7 +342,12 @@ impl Material {
     /// assert!(m.pbr.is_some() && m.kr == Vec3::ZERO);
     /// ```
     pub fn metallic_roughness(params: MetallicRoughness) -> Material {
-        let ior = 1.5;
+        Material::metallic_roughness_with_ior(params, 1.5)
+    }
+
+    /// [`Material::metallic_roughness`] for a dielectric of index `ior`
+    /// (glTF's `KHR_materials_ior`): the Whitted approximation uses it too.
+    pub fn metallic_roughness_with_ior(params: MetallicRoughness, ior: f32) -> Material {
         let (kd, ks, shininess, kr, kt) = params.phong_approximation(ior);
         Material {
             ka: kd,

@@ -195,7 +195,6 @@ pub(super) fn convert(
         roughness_map: mr_map,
         transmission: transmission.map_or(0.0, |t| t.transmission_factor()),
     };
-    let (kd, ks, shininess, kr, kt) = params.phong_approximation(ior);
     let alpha_mode = match m.alpha_mode() {
         gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
         gltf::material::AlphaMode::Mask => AlphaMode::Mask {
@@ -210,22 +209,14 @@ pub(super) fn convert(
     };
     let strength = m.emissive_strength().unwrap_or(1.0);
     Ok(Material {
-        ka: kd,
-        kd,
-        ks,
-        shininess,
-        kr,
-        kt,
-        ior,
-        roughness: params.roughness,
         emission: Vec3::from(m.emissive_factor()) * strength,
         diffuse_map: base_map,
-        pbr: Some(params),
         normal_map,
         normal_scale: m.normal_texture().map_or(1.0, |n| n.scale()),
         emission_map,
         alpha: a,
         alpha_mode,
         double_sided: m.double_sided(),
+        ..Material::metallic_roughness_with_ior(params, ior)
     })
 }
