@@ -65,26 +65,7 @@ pub fn texture_from_bytes_as(bytes: &[u8], path: &Path, space: ColorSpace) -> Re
             format!("{format:?} images are not supported (use PNG or JPEG)"),
         ));
     }
-    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
-    // The header alone, with the decoder's default limits, so the checks
-    // below give the messages.
-    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
-        .into_dimensions()
-        .map_err(cannot)?;
-    check_size(bytes, path, width, height, "textures")?;
-    // zune-jpeg 0.5.15 (through image) panics on some malformed JPEGs (an
-    // IDCT slice out of range, found by fuzzing); a decoder's panic is this
-    // file's error, not the program's end.
-    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
-    let img = match decoded {
-        Ok(result) => result.map_err(cannot)?,
-        Err(_) => {
-            return Err(AssetError::format(
-                path,
-                format!("cannot decode image: the {format:?} decoder failed on malformed data"),
-            ));
-        }
-    };
+    let img = decode(bytes, path, format, "textures")?;
     let (width, height) = (img.width(), img.height());
     let has_alpha = img.color().has_alpha();
     let eight_bit = matches!(
@@ -172,26 +153,34 @@ pub fn environment_map_from_bytes(bytes: &[u8], path: &Path) -> Result<(Environm
             format!("{format:?} images are not environment maps (use Radiance .hdr or OpenEXR)"),
         ));
     }
-    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
-    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
-        .into_dimensions()
-        .map_err(cannot)?;
-    check_size(bytes, path, width, height, "environment maps")?;
-    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
-    let img = match decoded {
-        Ok(result) => result.map_err(cannot)?,
-        Err(_) => {
-            return Err(AssetError::format(
-                path,
-                format!("cannot decode image: the {format:?} decoder failed on malformed data"),
-            ));
-        }
-    };
+    let img = decode(bytes, path, format, "environment maps")?;
     let (width, height) = (img.width(), img.height());
     let mut texels: Vec<Vec3> = img.to_rgb32f().pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
     let bad = EnvironmentMap::sanitize(&mut texels);
     let map = EnvironmentMap::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))?;
     Ok((map, bad))
+}
+
+/// Decodes `bytes` in `format` once their header's size passes
+/// [`check_size`] for `what` (textures, environment maps).
+fn decode(bytes: &[u8], path: &Path, format: ImageFormat, what: &str) -> Result<DynamicImage, AssetError> {
+    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
+    // The header alone, with the decoder's default limits, so the checks
+    // give the messages.
+    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(cannot)?;
+    check_size(bytes, path, width, height, what)?;
+    // zune-jpeg 0.5.15 (through image) panics on some malformed JPEGs (an
+    // IDCT slice out of range, found by fuzzing); a decoder's panic is this
+    // file's error, not the program's end.
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode())) {
+        Ok(result) => result.map_err(cannot),
+        Err(_) => Err(AssetError::format(
+            path,
+            format!("cannot decode image: the {format:?} decoder failed on malformed data"),
+        )),
+    }
 }
 
 /// Refuses an image whose header claims more texels than the limits, or
