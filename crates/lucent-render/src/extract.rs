@@ -555,6 +555,8 @@ mod tests {
     use super::*;
     use lucent_geom::shapes;
 
+    /// Two instances of one glass ball: built here, not taken from
+    /// `fixtures`, because the tests count what the two share.
     fn scene() -> (Scene, Entity, Entity) {
         let mut scene = Scene::default();
         let mesh = scene.add_mesh("ball", shapes::icosphere(1));

@@ -165,15 +165,7 @@ pub fn render_samples_cancellable(
 /// ```
 /// use lucent_render::{extract, Film, RenderSettings, Integrator, render_samples, render_samples_aov};
 /// use lucent_render::aov::AovFilm;
-/// use lucent_scene::{Scene, components::*};
-/// use lucent_geom::{shapes, Affine3A, Vec3};
-/// let mut scene = Scene::default();
-/// let mesh = scene.add_mesh("ball", shapes::icosphere(2));
-/// let mat = scene.add_material("white", Material::default());
-/// scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
-/// scene.add_light("sun", Light::Directional { to_light: Vec3::Y, intensity: Vec3::ONE });
-/// scene.add_camera("cam", Camera::default(), OrbitRig::default());
-/// let rs = extract(&scene)?;
+/// let rs = extract(&lucent_scene::fixtures::ball_under_sun())?;
 /// let settings = RenderSettings { integrator: Integrator::Path, ..RenderSettings::default() };
 /// let (mut film, mut aovs, mut plain) = (Film::new(16, 8), AovFilm::new(16, 8), Film::new(16, 8));
 /// render_samples_aov(&rs, &settings, &mut film, &mut aovs, 0..2, &|_| {});

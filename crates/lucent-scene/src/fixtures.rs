@@ -1,8 +1,11 @@
 //! Small scenes built in code, by name, for tests, examples and
 //! benchmarks across the crates, so each need not hand-build its own.
 //!
-//! A fixture is a plain [`Scene`]; callers change what their test needs
-//! (settings, environment, extra entities) on the returned value.
+//! A fixture is a plain [`Scene`] with the default environment unless it
+//! says otherwise; callers change what their test needs (settings,
+//! environment, extra entities) on the returned value. A test that needs a
+//! scene of its own shape (a concave mesh, one triangle, a scale sweep)
+//! builds it, and says why.
 //!
 //! ```
 //! use lucent_scene::fixtures;
@@ -11,9 +14,9 @@
 //! assert!(scene.camera().is_some());
 //! ```
 
-use crate::Scene;
 use crate::components::{Camera, Light, Material, OrbitRig};
-use lucent_geom::{Affine3A, Vec3, shapes};
+use crate::{Environment, Scene};
+use lucent_geom::{Affine3A, Quat, TriMesh, Vec3, shapes};
 
 /// One white icosphere (2 subdivisions, radius 1) at the origin, lit by a
 /// white directional light from straight above, seen by the default camera
@@ -31,5 +34,93 @@ pub fn ball_under_sun() -> Scene {
         },
     );
     scene.add_camera("cam", Camera::default(), OrbitRig::default());
+    scene
+}
+
+/// A white (albedo 1) sphere of flat facets (an icosphere, 2 subdivisions,
+/// radius 1) at the origin under `environment`, seen by a 50-degree camera
+/// on the default rig: a furnace test, since a white convex object under a
+/// uniform sky reflects exactly what it receives.
+pub fn furnace_sphere(environment: Environment) -> Scene {
+    let mut scene = Scene {
+        environment,
+        ..Scene::default()
+    };
+    let ball = shapes::icosphere(2);
+    let flat = TriMesh::new(ball.positions().to_vec(), ball.indices().to_vec()).unwrap_or_default();
+    let mesh = scene.add_mesh("ball", flat);
+    let white = scene.add_material(
+        "white",
+        Material {
+            kd: Vec3::ONE,
+            ..Material::default()
+        },
+    );
+    scene.add_instance("ball", mesh, white, Affine3A::IDENTITY);
+    scene.add_camera("cam", Camera { fov_y_deg: 50.0 }, OrbitRig::default());
+    scene
+}
+
+/// A closed box (the unit cube scaled to 4 wide) turned inside out, its
+/// walls diffuse of `albedo` and all emitting `emission`, seen from inside
+/// (flat normals, 100-degree camera) in a black environment: the path
+/// tracer's white furnace, whose pixels converge to a geometric series.
+pub fn glowing_box(albedo: f32, emission: f32) -> Scene {
+    let mut scene = Scene {
+        environment: Environment {
+            ambient: Vec3::ZERO,
+            shadowed_ambient: false,
+            ..Environment::default()
+        },
+        ..Scene::default()
+    };
+    let cube = shapes::cuboid();
+    let inward = cube.indices().iter().map(|&[a, b, c]| [a, c, b]).collect();
+    let mesh = scene.add_mesh(
+        "box",
+        TriMesh::new(cube.positions().to_vec(), inward).unwrap_or_default(),
+    );
+    let mat = scene.add_material(
+        "wall",
+        Material {
+            kd: Vec3::splat(albedo),
+            emission: Vec3::splat(emission),
+            ..Material::default()
+        },
+    );
+    scene.add_instance("box", mesh, mat, Affine3A::from_scale(Vec3::splat(4.0)));
+    let rig = OrbitRig {
+        center: Vec3::ZERO,
+        radius: 1.0,
+        theta: 0.2,
+        phi: 1.0,
+    };
+    scene.add_camera("cam", Camera { fov_y_deg: 100.0 }, rig);
+    scene
+}
+
+/// A floor of `material`: the unit plane scaled to 100 wide at y = 0,
+/// facing up, seen by the default camera; no lights.
+pub fn floor(material: Material) -> Scene {
+    let mut scene = Scene::default();
+    let plane = scene.add_mesh("plane", shapes::plane());
+    let mat = scene.add_material("floor", material);
+    scene.add_instance("floor", plane, mat, Affine3A::from_scale(Vec3::splat(100.0)));
+    scene.add_camera("cam", Camera::default(), OrbitRig::default());
+    scene
+}
+
+/// [`floor`] with a ceiling of `ceiling` (the same plane facing down) at
+/// `height`: two parallel planes for light to bounce between.
+pub fn floor_and_ceiling(floor_material: Material, ceiling: Material, height: f32) -> Scene {
+    let mut scene = floor(floor_material);
+    let plane = scene.add_mesh("ceiling", shapes::plane());
+    let mat = scene.add_material("ceiling", ceiling);
+    let xf = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(100.0),
+        Quat::from_rotation_x(std::f32::consts::PI),
+        Vec3::new(0.0, height, 0.0),
+    );
+    scene.add_instance("ceiling", plane, mat, xf);
     scene
 }

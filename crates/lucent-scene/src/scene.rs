@@ -144,6 +144,7 @@ mod tests {
 
     #[test]
     fn builds_a_scene_and_counts_it() {
+        // Built by hand, not from `fixtures`: the builder is what is tested.
         let mut scene = Scene::default();
         let ball = scene.add_mesh("ball", shapes::icosphere(1));
         let grey = scene.add_material("grey", Material::default());

@@ -237,17 +237,11 @@ fn without_environment_sampling_the_light_set_never_picks_it() {
 
 #[test]
 fn a_render_scene_turns_its_map_in_place() {
-    use lucent_scene::Scene;
-    use lucent_scene::components::{Camera, OrbitRig};
     // Bright only around +z (u = 1/2) before turning.
     let m = map(8, 5, |x, _| if x == 3 || x == 4 { Vec3::ONE } else { Vec3::ZERO });
-    let mut scene = Scene::default();
-    scene.environment.map = Some(m);
     // Something to light, so the scene has a size and the map a power.
-    let ball = scene.add_mesh("ball", lucent_geom::shapes::icosphere(1));
-    let white = scene.add_material("white", lucent_scene::components::Material::default());
-    scene.add_instance("ball", ball, white, lucent_geom::Affine3A::IDENTITY);
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
+    let mut scene = lucent_scene::fixtures::ball_under_sun();
+    scene.environment.map = Some(m);
     let mut rs = crate::extract(&scene).unwrap_or_else(|e| panic!("{e}"));
     assert!(rs.environment_radiance(Vec3::Z).x > 0.5 && rs.environment_radiance(Vec3::X) == Vec3::ZERO);
     rs.set_environment_rotation(90.0);

@@ -3,24 +3,12 @@
 
 use super::*;
 use crate::{Integrator, extract, render};
-use lucent_geom::{Affine3A, Vec3, shapes};
-use lucent_scene::Scene;
-use lucent_scene::components::{Camera, Light, Material, OrbitRig};
+use lucent_geom::Vec3;
+use lucent_scene::fixtures;
 
 fn scene() -> RenderScene {
-    let mut scene = Scene::default();
-    let mesh = scene.add_mesh("ball", shapes::icosphere(1));
-    let mat = scene.add_material("white", Material::default());
-    scene.add_instance("ball", mesh, mat, Affine3A::IDENTITY);
-    scene.add_light(
-        "sun",
-        Light::Directional {
-            to_light: Vec3::Y,
-            intensity: Vec3::ONE,
-        },
-    );
+    let mut scene = fixtures::ball_under_sun();
     scene.environment.background = Vec3::splat(0.5);
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
     extract(&scene).unwrap_or_else(|e| panic!("{e}"))
 }
 

@@ -4,9 +4,9 @@
 
 use super::*;
 use crate::{Film, extract, render, with_threads};
-use lucent_geom::{Affine3A, TriMesh, shapes};
-use lucent_scene::components::{Camera, Light, Material, OrbitRig};
-use lucent_scene::{Environment, Integrator, Scene};
+
+use lucent_scene::components::{Light, Material};
+use lucent_scene::{Environment, Integrator, Scene, fixtures};
 
 fn settings(max_depth: u32, spp: u32) -> RenderSettings {
     RenderSettings {
@@ -29,41 +29,6 @@ fn dark() -> Environment {
     }
 }
 
-/// The unit cube turned inside out: the same faces wound the other way, so
-/// every face (and its emission) looks inward; flat normals.
-fn inward_cube() -> TriMesh {
-    let cube = shapes::cuboid();
-    let faces = cube.indices().iter().map(|&[a, b, c]| [a, c, b]).collect();
-    TriMesh::new(cube.positions().to_vec(), faces).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// A closed box of diffuse `albedo` whose walls all emit `emission`, seen
-/// from inside.
-fn furnace(albedo: f32, emission: f32) -> Scene {
-    let mut scene = Scene {
-        environment: dark(),
-        ..Scene::default()
-    };
-    let mesh = scene.add_mesh("box", inward_cube());
-    let mat = scene.add_material(
-        "wall",
-        Material {
-            kd: Vec3::splat(albedo),
-            emission: Vec3::splat(emission),
-            ..Material::default()
-        },
-    );
-    scene.add_instance("box", mesh, mat, Affine3A::from_scale(Vec3::splat(4.0)));
-    let rig = OrbitRig {
-        center: Vec3::ZERO,
-        radius: 1.0,
-        theta: 0.2,
-        phi: 1.0,
-    };
-    scene.add_camera("cam", Camera { fov_y_deg: 100.0 }, rig);
-    scene
-}
-
 fn mean_and_spread(film: &Film) -> (Vec3, f32) {
     let px = film.to_linear();
     let n = px.len() as f32;
@@ -79,7 +44,7 @@ fn render_path(scene: &Scene, s: &RenderSettings) -> Film {
 
 #[test]
 fn max_depth_counts_segments_from_the_camera() {
-    let scene = furnace(1.0, 1.0);
+    let scene = fixtures::glowing_box(1.0, 1.0);
     // 0: no segment at all; 1: the emitters seen directly, exactly.
     let black = render_path(&scene, &settings(0, 2));
     assert_eq!(mean_and_spread(&black), (Vec3::ZERO, 0.0));
@@ -95,7 +60,7 @@ fn a_white_furnace_with_glowing_walls_collects_one_emission_per_segment() {
     // both densities must agree for that). Roulette starts at the fifth
     // vertex, so D = 7 checks it too.
     for (depth, spp, tol) in [(2u32, 64u32, 0.02f32), (3, 64, 0.03), (7, 256, 0.05)] {
-        let film = render_path(&furnace(1.0, 1.0), &settings(depth, spp));
+        let film = render_path(&fixtures::glowing_box(1.0, 1.0), &settings(depth, spp));
         let (mean, _) = mean_and_spread(&film);
         let want = depth as f32;
         assert!(
@@ -115,7 +80,7 @@ fn a_white_furnace_with_glowing_walls_collects_one_emission_per_segment() {
 fn a_grey_furnace_converges_to_the_geometric_series() {
     // Albedo 1/2, emission 1: L = 1 + 1/2 + 1/4 + ... = 2 with unlimited
     // depth (64 segments here, roulette doing the rest).
-    let film = render_path(&furnace(0.5, 1.0), &settings(64, 128));
+    let film = render_path(&fixtures::glowing_box(0.5, 1.0), &settings(64, 128));
     let (mean, _) = mean_and_spread(&film);
     assert!((mean - Vec3::splat(2.0)).abs().max_element() < 0.02, "{mean}");
 }
@@ -125,25 +90,10 @@ fn a_white_object_under_a_uniform_sky_disappears() {
     // The classic furnace: albedo 1 under background 1 reflects exactly
     // what it receives, so the whole image is 1 (flat normals: a convex
     // object sends every bounce straight back to the sky).
-    let mut scene = Scene {
-        environment: Environment {
-            background: Vec3::ONE,
-            ..dark()
-        },
-        ..Scene::default()
-    };
-    let ball = shapes::icosphere(2);
-    let flat = TriMesh::new(ball.positions().to_vec(), ball.indices().to_vec()).unwrap_or_else(|e| panic!("{e}"));
-    let mesh = scene.add_mesh("ball", flat);
-    let white = scene.add_material(
-        "white",
-        Material {
-            kd: Vec3::ONE,
-            ..Material::default()
-        },
-    );
-    scene.add_instance("ball", mesh, white, Affine3A::IDENTITY);
-    scene.add_camera("cam", Camera { fov_y_deg: 50.0 }, OrbitRig::default());
+    let scene = fixtures::furnace_sphere(Environment {
+        background: Vec3::ONE,
+        ..dark()
+    });
     // The sky is a light sampled beside the BSDF (MIS), so single paths
     // vary; their mean does not.
     let film = render_path(&scene, &settings(16, 64));
@@ -168,20 +118,7 @@ fn uniform_map_environment() -> Environment {
 
 #[test]
 fn a_white_sphere_inside_a_uniform_map_renders_as_the_map() {
-    let mut scene = Scene {
-        environment: uniform_map_environment(),
-        ..Scene::default()
-    };
-    let mesh = scene.add_mesh("ball", shapes::icosphere(3));
-    let white = scene.add_material(
-        "white",
-        Material {
-            kd: Vec3::ONE,
-            ..Material::default()
-        },
-    );
-    scene.add_instance("ball", mesh, white, Affine3A::IDENTITY);
-    scene.add_camera("cam", Camera { fov_y_deg: 50.0 }, OrbitRig::default());
+    let scene = fixtures::furnace_sphere(uniform_map_environment());
     let film = render_path(&scene, &settings(16, 64));
     let (mean, _) = mean_and_spread(&film);
     assert!((mean - Vec3::splat(1.4)).abs().max_element() < 0.014, "{mean}");
@@ -198,24 +135,15 @@ fn a_diffuse_plane_under_a_half_sky_reflects_its_albedo() {
     // irradiance pi, radiance albedo * pi / pi = albedo.
     let texels = [1.0, 1.0, 0.0].iter().flat_map(|&v| [Vec3::splat(v); 4]).collect();
     let map = lucent_shading::EnvironmentMap::new(4, 3, texels).unwrap_or_else(|e| panic!("{e}"));
-    let mut scene = Scene {
-        environment: Environment {
-            map: Some(std::sync::Arc::new(map)),
-            rotation_deg: 33.0,
-            ..dark()
-        },
-        ..Scene::default()
+    let mut scene = fixtures::floor(Material {
+        kd: Vec3::splat(0.5),
+        ..Material::default()
+    });
+    scene.environment = Environment {
+        map: Some(std::sync::Arc::new(map)),
+        rotation_deg: 33.0,
+        ..dark()
     };
-    let plane = scene.add_mesh("floor", shapes::plane());
-    let mat = scene.add_material(
-        "floor",
-        Material {
-            kd: Vec3::splat(0.5),
-            ..Material::default()
-        },
-    );
-    scene.add_instance("floor", plane, mat, Affine3A::from_scale(Vec3::splat(100.0)));
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
     let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
     let from = Vec3::new(0.0, 1.0, 1.0);
     let ray = Ray::new(from, (-from).normalize());
@@ -239,7 +167,7 @@ fn a_diffuse_plane_under_a_half_sky_reflects_its_albedo() {
 #[test]
 fn an_all_black_map_renders_black_without_sampling_it() {
     let map = lucent_shading::EnvironmentMap::new(4, 2, vec![Vec3::ZERO; 8]).unwrap_or_else(|e| panic!("{e}"));
-    let mut scene = furnace(0.5, 0.0);
+    let mut scene = fixtures::glowing_box(0.5, 0.0);
     scene.environment = Environment {
         map: Some(std::sync::Arc::new(map)),
         background: Vec3::ONE,
@@ -253,21 +181,12 @@ fn an_all_black_map_renders_black_without_sampling_it() {
 
 /// A large diffuse floor (albedo `kd`) at y = 0 lit by `light`.
 fn lit_floor(light: Light, kd: f32) -> RenderScene {
-    let mut scene = Scene {
-        environment: dark(),
-        ..Scene::default()
-    };
-    let plane = scene.add_mesh("floor", shapes::plane());
-    let mat = scene.add_material(
-        "floor",
-        Material {
-            kd: Vec3::splat(kd),
-            ..Material::default()
-        },
-    );
-    scene.add_instance("floor", plane, mat, Affine3A::from_scale(Vec3::splat(100.0)));
+    let mut scene = fixtures::floor(Material {
+        kd: Vec3::splat(kd),
+        ..Material::default()
+    });
+    scene.environment = dark();
     scene.add_light("light", light);
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
     extract(&scene).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -311,7 +230,7 @@ fn point_and_directional_lights_give_lambert_direct_light() {
 
 #[test]
 fn one_and_two_threads_give_the_same_bytes() {
-    let scene = furnace(0.8, 1.0);
+    let scene = fixtures::glowing_box(0.8, 1.0);
     let s = settings(8, 3);
     let one = with_threads(1, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
     let two = with_threads(2, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
@@ -322,30 +241,17 @@ fn one_and_two_threads_give_the_same_bytes() {
 /// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
 /// (albedo 0.5) at y = 2 that faces down, lit by a point light between.
 fn mirror_under_ceiling() -> RenderScene {
-    let mut scene = Scene {
-        environment: dark(),
-        ..Scene::default()
+    let mirror = Material {
+        kd: Vec3::ZERO,
+        kr: Vec3::splat(0.8),
+        ..Material::default()
     };
-    let plane = scene.add_mesh("plane", shapes::plane());
-    let mirror = scene.add_material(
-        "mirror",
-        Material {
-            kd: Vec3::ZERO,
-            kr: Vec3::splat(0.8),
-            ..Material::default()
-        },
-    );
-    let grey = scene.add_material(
-        "grey",
-        Material {
-            kd: Vec3::splat(0.5),
-            ..Material::default()
-        },
-    );
-    let big = Affine3A::from_scale(Vec3::splat(100.0));
-    scene.add_instance("floor", plane, mirror, big);
-    let flip = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(std::f32::consts::PI);
-    scene.add_instance("ceiling", plane, grey, flip * big);
+    let grey = Material {
+        kd: Vec3::splat(0.5),
+        ..Material::default()
+    };
+    let mut scene = fixtures::floor_and_ceiling(mirror, grey, 2.0);
+    scene.environment = dark();
     scene.add_light(
         "bulb",
         Light::Point {
@@ -353,7 +259,6 @@ fn mirror_under_ceiling() -> RenderScene {
             intensity: Vec3::ONE,
         },
     );
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
     extract(&scene).unwrap_or_else(|e| panic!("{e}"))
 }
 

@@ -4,7 +4,7 @@ use super::*;
 use crate::{extract, render};
 use lucent_geom::{Affine3A, TriMesh, shapes};
 use lucent_scene::components::{Camera, Light, OrbitRig};
-use lucent_scene::{Environment, Scene};
+use lucent_scene::{Scene, fixtures};
 
 const SUN: Light = Light::Directional {
     to_light: Vec3::Y,
@@ -20,27 +20,15 @@ fn matte(k: f32) -> Material {
 }
 
 /// A floor (y = 0, 100 wide, Ka = Kd = 0.5) lit from straight above, with
-/// ambient 0.2, and a 2x2x2 box floating over the origin (y from 1.5 to 3.5).
+/// the default ambient 0.2 (shadowed), and a 2x2x2 box floating over the origin (y from 1.5 to 3.5).
 fn floor_and_box(box_material: Material) -> Scene {
-    let mut scene = Scene {
-        environment: Environment {
-            background: Vec3::ZERO,
-            ambient: Vec3::splat(0.2),
-            shadowed_ambient: true,
-            ..Environment::default()
-        },
-        ..Scene::default()
-    };
-    let plane = scene.add_mesh("plane", shapes::plane());
+    let mut scene = fixtures::floor(matte(0.5));
     let cube = scene.add_mesh("cube", shapes::cuboid());
-    let floor_mat = scene.add_material("floor", matte(0.5));
     let box_mat = scene.add_material("box", box_material);
-    scene.add_instance("floor", plane, floor_mat, Affine3A::from_scale(Vec3::splat(100.0)));
     let box_xf =
         Affine3A::from_scale_rotation_translation(Vec3::splat(2.0), Default::default(), Vec3::new(0.0, 2.5, 0.0));
     scene.add_instance("box", cube, box_mat, box_xf);
     scene.add_light("sun", SUN);
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
     scene
 }
 
@@ -279,23 +267,11 @@ fn dense_spheres_stay_finite() {
 #[test]
 fn min_weight_stops_the_recursion() {
     // Two facing mirrors with kr = 0.5: weights 0.5, 0.25, 0.125, ...
-    let mut scene = Scene::default();
-    let plane = scene.add_mesh("plane", shapes::plane());
-    let mirror = scene.add_material(
-        "mirror",
-        Material {
-            kr: Vec3::splat(0.5),
-            ..Material::default()
-        },
-    );
-    scene.add_instance("floor", plane, mirror, Affine3A::from_scale(Vec3::splat(100.0)));
-    let ceiling = Affine3A::from_scale_rotation_translation(
-        Vec3::splat(100.0),
-        lucent_geom::Quat::from_rotation_x(std::f32::consts::PI),
-        Vec3::new(0.0, 1.0, 0.0),
-    );
-    scene.add_instance("ceiling", plane, mirror, ceiling);
-    scene.add_camera("cam", Camera::default(), OrbitRig::default());
+    let mirror = Material {
+        kr: Vec3::splat(0.5),
+        ..Material::default()
+    };
+    let scene = fixtures::floor_and_ceiling(mirror.clone(), mirror, 1.0);
     let count = |min_weight: f32, max_depth: u32| {
         let settings = RenderSettings {
             min_weight,
