@@ -8,6 +8,10 @@
 //!   in xtask, exr only in lucent-assets, libloading (which loads Intel
 //!   Open Image Denoise at run time) only in lucent-denoise;
 //! - no `#[should_panic]` or `#[ignore]` tests (assert on `Err` instead);
+//! - no `unwrap()`, `expect(`, `panic!`, `todo!`, `unimplemented!` or
+//!   `unreachable!` in the crates' code outside tests and doc comments,
+//!   unless the comment line above says `// ok: <why it cannot fail>`
+//!   (data must never reach a panic);
 //! - no trailing whitespace in our sources and docs (asset data under
 //!   `res/meshes` is kept byte-for-byte as shipped and is exempt).
 
@@ -69,7 +73,84 @@ pub fn check(root: &Path) -> Result<(), Vec<String>> {
             check_owners(&rel, &text, &mut problems);
         }
     }
+    check_panics(root, &files, &mut problems);
     if problems.is_empty() { Ok(()) } else { Err(problems) }
+}
+
+/// What can panic, as it is written.
+const PANICS: &[&str] = &[
+    ".unwrap()",
+    ".expect(",
+    "panic!(",
+    "todo!(",
+    "unimplemented!(",
+    "unreachable!(",
+];
+
+/// Flags each panic site in `crates/*/src` outside test modules (inline
+/// `#[cfg(test)]` blocks and the files `#[cfg(test)] mod x;` names) and
+/// doc comments that no `// ok:` comment line above explains.
+fn check_panics(root: &Path, files: &[PathBuf], problems: &mut Vec<String>) {
+    let src: Vec<&PathBuf> = files
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "rs") && p.components().any(|c| c.as_os_str() == "src"))
+        .filter(|p| p.strip_prefix(root).is_ok_and(|r| r.starts_with("crates")))
+        .collect();
+    let mut test_files = Vec::new();
+    for path in &src {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().map(str::trim).collect();
+        for (i, l) in lines.iter().enumerate() {
+            let next = lines[i + 1..].iter().find(|l| !l.starts_with("#["));
+            let Some(name) = next.and_then(|n| n.strip_prefix("mod ")?.strip_suffix(';')) else {
+                continue;
+            };
+            if *l == "#[cfg(test)]" {
+                let dir = path.parent().unwrap_or(root);
+                let stem = path
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                test_files.push(dir.join(format!("{name}.rs")));
+                test_files.push(dir.join(&stem).join(format!("{name}.rs")));
+            }
+        }
+    }
+    for path in src.into_iter().filter(|p| !test_files.contains(p)) {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        let rel = path.strip_prefix(root).unwrap_or(path).display();
+        let (mut depth, mut test_at, mut pending, mut explained) = (0i32, None, false, false);
+        for (i, line) in text.lines().enumerate() {
+            let l = line.trim();
+            let code = if l.starts_with("//") {
+                ""
+            } else {
+                l.split("//").next().unwrap_or("")
+            };
+            if l == "#[cfg(test)]" {
+                pending = true;
+            } else if pending && test_at.is_none() && code.contains('{') {
+                (test_at, pending) = (Some(depth), false);
+            } else if pending && code.ends_with(';') {
+                pending = false;
+            }
+            if test_at.is_none() && PANICS.iter().any(|p| code.contains(p)) && !explained && !l.contains("// ok:") {
+                problems.push(format!(
+                    "{rel}:{}: can panic; handle the case, or say why it cannot fail in a `// ok:` comment above",
+                    i + 1
+                ));
+            }
+            if l.starts_with("//") {
+                explained |= l.starts_with("// ok:");
+            } else {
+                explained = false;
+            }
+            depth += code.matches('{').count() as i32 - code.matches('}').count() as i32;
+            if test_at.is_some_and(|d| depth <= d) {
+                test_at = None;
+            }
+        }
+    }
 }
 
 fn check_owners(rel: &str, manifest: &str, problems: &mut Vec<String>) {
@@ -120,6 +201,32 @@ mod tests {
         if let Err(problems) = check(&crate::root()) {
             panic!("tidy found problems:\n{}", problems.join("\n"));
         }
+    }
+
+    #[test]
+    fn panic_rule_flags_library_code_only() {
+        let root = std::env::temp_dir().join(format!("lucent-tidy-{}", std::process::id()));
+        let src = root.join("crates/k/src");
+        let _ = std::fs::create_dir_all(src.join("m"));
+        let lib = "//! k\nfn a() { x.unwrap(); }\n// ok: checked above\nfn b() { x.unwrap(); }\n\
+                   fn c() { x.unwrap(); } // ok: same line\n#[cfg(test)]\nmod tests {\n    fn t() { x.unwrap(); }\n}\n\
+                   /// x.unwrap() in a doc\nfn d() { panic!(\"{e}\") }\n#[cfg(test)]\nmod unit;\nmod m;\n";
+        let files = [src.join("lib.rs"), src.join("unit.rs"), src.join("m.rs")];
+        for (f, text) in files.iter().zip([
+            lib,
+            "//! t\nfn u() { x.unwrap(); }\n",
+            "//! m\nfn v() { x.expect(\"\"); }\n",
+        ]) {
+            std::fs::write(f, text).unwrap();
+        }
+        let mut problems = Vec::new();
+        check_panics(&root, &files, &mut problems);
+        let _ = std::fs::remove_dir_all(&root);
+        let lines: Vec<&str> = problems.iter().map(|p| p.split(": can").next().unwrap_or("")).collect();
+        assert_eq!(
+            lines,
+            ["crates/k/src/lib.rs:2", "crates/k/src/lib.rs:11", "crates/k/src/m.rs:2"]
+        );
     }
 
     #[test]
