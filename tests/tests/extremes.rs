@@ -10,7 +10,7 @@
 use lucent_geom::{Affine3A, Named, Vec3, shapes};
 use lucent_render::{Film, RenderSettings, Shading, extract, render};
 use lucent_scene::Scene;
-use lucent_scene::components::{Camera, Light, Material, OrbitRig, Transform};
+use lucent_scene::components::{Camera, Light, Material, OrbitRig};
 use lucent_tests::{load_repo_scene, place_scene as place};
 
 /// Whether the slow sizes are on (`cargo xtask extremes`).
@@ -412,15 +412,7 @@ fn no_shadow_acne_or_self_hits_at_any_scale_or_angle() {
 /// index `ior`, or with no sphere.
 fn clear_sphere(ior: Option<f32>) -> Scene {
     let mut scene = sphere_on_floor();
-    let ball = scene
-        .world
-        .query_mut::<(lucent_scene::hecs::Entity, &lucent_scene::components::Name, &Transform)>()
-        .into_iter()
-        .find(|(_, n, _)| n.0 == "ball")
-        .map(|(e, _, _)| e);
-    if let Some(ball) = ball {
-        let _ = scene.world.despawn(ball);
-    }
+    scene.remove_instances("ball");
     if let Some(ior) = ior {
         let mesh = scene.add_mesh("clear ball", shapes::icosphere(4));
         let clear = scene.add_material(

@@ -5,7 +5,7 @@
 use lucent_geom::{Affine3A, Named, Vec3, shapes};
 use lucent_render::{ExtractOptions, Film, Integrator, RayStats, SceneFeatures, Shading, extract_with, render};
 use lucent_scene::Scene;
-use lucent_scene::components::{Camera, Light, Material, MeshRef, Name, OrbitRig, Texture};
+use lucent_scene::components::{Camera, Light, Material, OrbitRig, Texture};
 use lucent_tests::load_repo_scene;
 use std::sync::Arc;
 
@@ -72,17 +72,7 @@ fn the_seed_scene_renders_the_same_specialised() {
 #[test]
 fn the_seed_scene_without_its_glass_sphere_renders_the_same_specialised() {
     let mut scene = load_repo_scene("res/scenes/seed.toml");
-    let sphere: Vec<_> = scene
-        .world
-        .query::<(lucent_scene::hecs::Entity, &Name, &MeshRef)>()
-        .iter()
-        .filter(|(_, n, _)| n.0 == "sphere")
-        .map(|(e, _, _)| e)
-        .collect();
-    assert_eq!(sphere.len(), 1);
-    for e in sphere {
-        scene.world.despawn(e).unwrap_or_else(|e| panic!("{e}"));
-    }
+    assert_eq!(scene.remove_instances("sphere"), 1);
     let f = assert_same_bytes("seed without the sphere", &scene, (48, 27, 2));
     assert!(!f.transmissive && f.reflective && f.textured, "{f:?}");
 }

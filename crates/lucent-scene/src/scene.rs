@@ -94,6 +94,22 @@ impl Scene {
         ))
     }
 
+    /// Removes every instance named `name` (the meshes and materials they
+    /// used stay); returns how many there were.
+    pub fn remove_instances(&mut self, name: &str) -> usize {
+        let found: Vec<Entity> = self
+            .world
+            .query_mut::<(Entity, &Name, &MeshRef)>()
+            .into_iter()
+            .filter(|(_, n, _)| n.0 == name)
+            .map(|(e, _, _)| e)
+            .collect();
+        for &e in &found {
+            let _ = self.world.despawn(e);
+        }
+        found.len()
+    }
+
     /// Adds a light.
     pub fn add_light(&mut self, name: &str, light: Light) -> Entity {
         self.world.spawn((Name(name.to_owned()), light))
@@ -175,5 +191,8 @@ mod tests {
             rig.radius = 9.0;
         }
         assert_eq!(scene.camera().map(|(_, r)| r.radius), Some(9.0));
+        // Instances only: the material named "grey" stays.
+        assert_eq!((scene.remove_instances("a"), scene.remove_instances("grey")), (1, 0));
+        assert_eq!((scene.counts().instances, scene.counts().materials), (1, 1));
     }
 }

@@ -14,8 +14,6 @@ use lucent_geom::Named;
 use lucent_render::metrics::median;
 use lucent_render::{ExtractOptions, Integrator, current_threads, extract_with, render, with_threads};
 use lucent_scene::Scene;
-use lucent_scene::components::{MeshRef, Name};
-use lucent_scene::hecs::Entity;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -123,18 +121,8 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
 /// Removes every object named `object` from the scene (instances only;
 /// the meshes and materials they used stay, unused).
 fn remove_object(scene: &mut Scene, object: &str) -> Result<()> {
-    let found: Vec<Entity> = scene
-        .world
-        .query::<(Entity, &Name, &MeshRef)>()
-        .iter()
-        .filter(|(_, n, _)| n.0 == object)
-        .map(|(e, _, _)| e)
-        .collect();
-    if found.is_empty() {
+    if scene.remove_instances(object) == 0 {
         bail!("no object named '{object}'");
-    }
-    for e in found {
-        scene.world.despawn(e)?;
     }
     Ok(())
 }

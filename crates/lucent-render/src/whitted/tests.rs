@@ -137,17 +137,8 @@ fn mirrors_reflect_what_is_above_them() {
     };
     let floor_mat = scene.add_material("mirror", mirror);
     let plane = scene.add_mesh("plane", shapes::plane());
-    // Replace the floor: despawn the old one by rebuilding the instance list.
-    let old: Vec<_> = scene
-        .world
-        .query::<(lucent_scene::hecs::Entity, &lucent_scene::components::Name)>()
-        .iter()
-        .filter(|(_, n)| n.0 == "floor")
-        .map(|(e, _)| e)
-        .collect();
-    for e in old {
-        let _ = scene.world.despawn(e);
-    }
+    // Replace the floor.
+    scene.remove_instances("floor");
     scene.add_instance("floor", plane, floor_mat, Affine3A::from_scale(Vec3::splat(100.0)));
     // From (-3, 3, 0.3) towards the floor at (-1.5, 0, 0.3): the mirrored
     // ray climbs to the box's side at x = -1.
