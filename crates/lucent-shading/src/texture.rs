@@ -85,7 +85,13 @@ impl Texture {
                 n_texels: texels.len(),
             });
         }
-        Ok(Self {
+        Ok(Self::checked(width, height, texels))
+    }
+
+    /// The texture of texels already checked to be `width * height > 0`,
+    /// with no alpha, repeating, untransformed.
+    fn checked(width: u32, height: u32, texels: Vec<Vec3>) -> Self {
+        Self {
             width,
             height,
             texels,
@@ -95,7 +101,7 @@ impl Texture {
             uv_scale: Vec2::ONE,
             uv_rotation: 0.0,
             uv_offset: Vec2::ZERO,
-        })
+        }
     }
 
     /// This texture with a linear alpha channel, one value per texel in the
@@ -126,17 +132,7 @@ impl Texture {
 
     /// A 1x1 texture of one colour (cannot fail).
     pub fn constant(color: Vec3) -> Self {
-        Self {
-            width: 1,
-            height: 1,
-            texels: vec![color],
-            alpha: None,
-            wrap: WrapMode::default(),
-            wrap_v: WrapMode::default(),
-            uv_scale: Vec2::ONE,
-            uv_rotation: 0.0,
-            uv_offset: Vec2::ZERO,
-        }
+        Self::checked(1, 1, vec![color])
     }
 
     /// Width in texels.
