@@ -207,7 +207,7 @@ mod tests {
     fn panic_rule_flags_library_code_only() {
         let root = std::env::temp_dir().join(format!("lucent-tidy-{}", std::process::id()));
         let src = root.join("crates/k/src");
-        let _ = std::fs::create_dir_all(src.join("m"));
+        let _ = std::fs::create_dir_all(&src);
         let lib = "//! k\nfn a() { x.unwrap(); }\n// ok: checked above\nfn b() { x.unwrap(); }\n\
                    fn c() { x.unwrap(); } // ok: same line\n#[cfg(test)]\nmod tests {\n    fn t() { x.unwrap(); }\n}\n\
                    /// x.unwrap() in a doc\nfn d() { panic!(\"{e}\") }\n#[cfg(test)]\nmod unit;\nmod m;\n";
