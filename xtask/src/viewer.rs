@@ -92,7 +92,7 @@ fn release_binary(build: bool) -> Result<PathBuf, String> {
 
 /// Starts the viewer with its stderr piped (read back by `finish`).
 fn start_viewer(bin: &Path, args: &[&str]) -> Result<Viewer, String> {
-    Viewer::start(bin, args, &std::env::temp_dir(), Stdio::piped())
+    Viewer::start(bin, args, &[], &std::env::temp_dir(), Stdio::piped())
 }
 
 /// Waits for the viewer to exit; returns success and its stderr.

@@ -26,11 +26,13 @@ pub struct Viewer {
 }
 
 impl Viewer {
-    /// Starts `bin view ARGS` in `dir`, with its stderr going to `stderr`.
-    pub fn start(bin: &Path, args: &[&str], dir: &Path, stderr: Stdio) -> Result<Self, String> {
+    /// Starts `bin view ARGS` in `dir` with the extra environment `env`,
+    /// its stderr going to `stderr`.
+    pub fn start(bin: &Path, args: &[&str], env: &[(&str, &str)], dir: &Path, stderr: Stdio) -> Result<Self, String> {
         let mut child = Command::new(bin)
             .arg("view")
             .args(args)
+            .envs(env.iter().copied())
             .current_dir(dir)
             .stdout(Stdio::piped())
             .stderr(stderr)
