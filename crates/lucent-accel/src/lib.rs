@@ -15,7 +15,8 @@
 //!   the closest hit's distance is recomputed in f64. Closest-hit, any-hit
 //!   and all-hits queries, plus a brute-force reference.
 //! - [`SceneBvh`]: two levels, one BVH over instances (affine transforms of
-//!   shared [`MeshBvh`]s, each mesh stored once).
+//!   shared [`MeshBvh`]s, each mesh stored once), collapsed to 8 wide and
+//!   walked like a mesh's tree.
 //!
 //! The vector code is plain safe Rust over `[f32; 4]` and `[f32; 8]` lanes
 //! that the compiler vectorises, except one module, `kernel` (x86-64 only):
