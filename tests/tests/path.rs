@@ -52,3 +52,165 @@ fn an_obj_lamp_with_ke_is_an_area_light_seen_from_its_front_only() {
     let film = render(&rs, &above, &|_| {}).film;
     assert!(film.to_linear().iter().all(|p| *p == Vec3::ZERO));
 }
+
+// The cheap presets' two bends of the path tracer (`free_delta_bounces`,
+// `clamp_indirect`), on scenes with known answers.
+
+mod bends {
+    use lucent_geom::{Affine3A, Pcg32, Ray, TriMesh, Vec3, shapes};
+    use lucent_render::path::PathTracer;
+    use lucent_render::{Film, Integrator, RayStats, RenderScene, RenderSettings, extract, render};
+    use lucent_scene::components::{Camera, Light, Material, OrbitRig};
+    use lucent_scene::{Environment, Scene};
+
+    fn settings(max_depth: u32, spp: u32) -> RenderSettings {
+        RenderSettings {
+            width: 12,
+            height: 8,
+            spp,
+            max_depth,
+            integrator: Integrator::Path,
+            seed: 3,
+            ..RenderSettings::default()
+        }
+    }
+
+    fn dark() -> Environment {
+        Environment {
+            background: Vec3::ZERO,
+            ambient: Vec3::ZERO,
+            shadowed_ambient: false,
+            ..Environment::default()
+        }
+    }
+
+    /// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
+    /// (albedo 0.5) at y = 2 that faces down, lit by a point light between.
+    fn mirror_under_ceiling() -> RenderScene {
+        let mut scene = Scene {
+            environment: dark(),
+            ..Scene::default()
+        };
+        let plane = scene.add_mesh("plane", shapes::plane());
+        let mirror = scene.add_material(
+            "mirror",
+            Material {
+                kd: Vec3::ZERO,
+                kr: Vec3::splat(0.8),
+                ..Material::default()
+            },
+        );
+        let grey = scene.add_material(
+            "grey",
+            Material {
+                kd: Vec3::splat(0.5),
+                ..Material::default()
+            },
+        );
+        let big = Affine3A::from_scale(Vec3::splat(100.0));
+        scene.add_instance("floor", plane, mirror, big);
+        let flip =
+            Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(std::f32::consts::PI);
+        scene.add_instance("ceiling", plane, grey, flip * big);
+        scene.add_light(
+            "bulb",
+            Light::Point {
+                position: Vec3::new(0.0, 1.0, 0.0),
+                intensity: Vec3::ONE,
+            },
+        );
+        scene.add_camera("cam", Camera::default(), OrbitRig::default());
+        extract(&scene).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// A closed box of diffuse `albedo` whose walls all emit `emission`,
+    /// seen from inside.
+    fn furnace(albedo: f32, emission: f32) -> Scene {
+        let mut scene = Scene {
+            environment: dark(),
+            ..Scene::default()
+        };
+        let cube = shapes::cuboid();
+        let faces = cube.indices().iter().map(|&[a, b, c]| [a, c, b]).collect();
+        let inward = TriMesh::new(cube.positions().to_vec(), faces).unwrap_or_else(|e| panic!("{e}"));
+        let mesh = scene.add_mesh("box", inward);
+        let mat = scene.add_material(
+            "wall",
+            Material {
+                kd: Vec3::splat(albedo),
+                emission: Vec3::splat(emission),
+                ..Material::default()
+            },
+        );
+        scene.add_instance("box", mesh, mat, Affine3A::from_scale(Vec3::splat(4.0)));
+        let rig = OrbitRig {
+            center: Vec3::ZERO,
+            radius: 1.0,
+            theta: 0.2,
+            phi: 1.0,
+        };
+        scene.add_camera("cam", Camera { fov_y_deg: 100.0 }, rig);
+        scene
+    }
+
+    fn mean(film: &Film) -> Vec3 {
+        let px = film.to_linear();
+        px.iter().copied().sum::<Vec3>() / px.len() as f32
+    }
+
+    #[test]
+    fn free_delta_bounces_let_a_short_path_see_past_a_mirror() {
+        // Camera ray -> mirror floor -> ceiling: with max_depth 2 the path
+        // reaches the ceiling on its last segment and gathers no light
+        // there; one free delta bounce makes that the direct light of a
+        // depth-3 path, with the very same random numbers and radiance.
+        let from = Vec3::new(0.0, 1.0, 1.0);
+        let ray = Ray::new(from, (-from).normalize());
+        let rs = mirror_under_ceiling();
+        let trace = |s: &RenderSettings| {
+            PathTracer::new(&rs, s).trace_primary(ray, &mut Pcg32::new(5, 0), &mut RayStats::default())
+        };
+        assert_eq!(
+            trace(&settings(2, 1)),
+            Vec3::ZERO,
+            "the ceiling's light is beyond the limit"
+        );
+        let free = |n: u32| {
+            trace(&RenderSettings {
+                free_delta_bounces: n,
+                ..settings(2, 1)
+            })
+        };
+        assert!(free(1).max_element() > 0.0, "{}", free(1));
+        assert_eq!(free(1), trace(&settings(3, 1)));
+        // The ceiling is diffuse: a second free bounce has nothing to do.
+        assert_eq!(free(8), free(1));
+    }
+
+    #[test]
+    fn clamp_indirect_caps_only_light_that_bounced() {
+        let scene = furnace(1.0, 1.0);
+        let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+        let film = |depth: u32, clamp: f32| {
+            let s = RenderSettings {
+                clamp_indirect: clamp,
+                ..settings(depth, 16)
+            };
+            render(&rs, &s, &|_| {}).film
+        };
+        // No clamp, or one no contribution reaches: the same bytes.
+        assert_eq!(film(4, 0.0), film(4, 1e9));
+        // Depth 2 is emission seen directly plus direct light: nothing to
+        // clamp.
+        assert_eq!(film(2, 0.0), film(2, 0.01));
+        // Depth 3 adds one bounce of indirect light, worth 1 in this
+        // furnace (mean 3); capped at 0.05 per contribution, at most two
+        // per sample (emission found after two bounces, light sampled at
+        // the second surface), the mean stays near the direct part's 2.
+        let full = mean(&film(3, 0.0));
+        let capped = mean(&film(3, 0.05));
+        assert!((full - Vec3::splat(3.0)).abs().max_element() < 0.1, "{full}");
+        assert!(capped.max_element() <= 2.0 + 2.0 * 0.05 + 0.05, "{capped}");
+        assert!(capped.min_element() > 1.9, "{capped}");
+    }
+}

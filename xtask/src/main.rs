@@ -40,10 +40,11 @@ commands:
   tidy                     check repository rules
   render SCENE [--out FILE.png] [lucent render options...]
                            render with a release build (default out: target/render.png)
-  view-bench [--size WxH] [--cycles N] [--rotate-s S] [--no-build]
+  view-bench [--size WxH] [--cycles N] [--rotate-s S] [--settle-s S] [--denoise] [--no-build]
                            drag-rotate the viewer with xdotool (under Xvfb if needed);
                            one JSON line: fps while rotating, settled scale,
-                           release to first full-resolution frame
+                           release to first full-resolution frame (and, with
+                           --denoise, to the first denoised still)
   soak [--seconds S] [--seed N] [--size WxH] [--no-build]
                            random input for S seconds (default 60): no panic,
                            finite camera, flat memory; one JSON line

@@ -7,8 +7,10 @@
 //! times, the rungs taking turns so that a change of machine load hits them
 //! alike. The rungs are the physical ladder (`PRESETS`), the same presets
 //! but `reference` denoised with Intel Open Image Denoise (`NAME+oidn`:
-//! rendered with the albedo and normal buffers, then the RT filter; its
-//! time includes both; skipped with a note when OIDN is not installed),
+//! rendered with the albedo and normal buffers, then the RT filter, with
+//! the emitters the camera sees kept out of the filter and put back from a
+//! camera-ray pass (`lucent_denoise::emission`); its time includes all of
+//! it; skipped with a note when OIDN is not installed),
 //! and the report's Whitted preview (`whitted`), off the ladder, which the
 //! path-traced `preview` replaced at the bottom. `--only a,b` measures the
 //! named rungs alone. Each preset gets the median wall time of extract (its
@@ -34,6 +36,7 @@ mod reference;
 mod report;
 
 use imaging::{Image, flip_mean, upsample};
+use lucent_denoise::emission::{DirectEmission, EMISSION_SPP};
 use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
 use lucent_render::aov::AovFilm;
@@ -430,10 +433,11 @@ fn time_rung(
         let (mut film, mut aovs) = (Film::new(w, h), AovFilm::new(w, h));
         let start = Instant::now();
         render_samples_aov(&rs, &settings, &mut film, &mut aovs, 0..settings.spp.max(1), &|_| {});
+        let emission = DirectEmission::render(&rs, &settings);
         let render_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let (denoised, _) = denoiser
-            .denoise_film(&film, Some(&aovs), Quality::High)
+            .denoise_render(&film, Some(&aovs), emission.as_ref(), Quality::High)
             .map_err(|e| e.to_string())?;
         let denoise_s = start.elapsed().as_secs_f64();
         let timing = Timing {
@@ -465,7 +469,16 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
             s.max_depth,
             s.min_weight
         ),
-        Integrator::Path => format!("path, depth {}, roulette from {}", s.max_depth, s.rr_depth),
+        Integrator::Path => {
+            let mut d = format!("path, depth {}, roulette from {}", s.max_depth, s.rr_depth);
+            if s.free_delta_bounces > 0 {
+                d += &format!(", {} free delta bounces", s.free_delta_bounces);
+            }
+            if s.clamp_indirect > 0.0 {
+                d += &format!(", indirect clamped at {}", s.clamp_indirect);
+            }
+            d
+        }
     };
     format!(
         "{}x{} ({}x), {} spp, {model}, BVH {}{}",
@@ -474,7 +487,11 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
         p.resolution_scale,
         s.spp,
         p.bvh_quality.name(),
-        if denoise { ", OIDN RT (albedo, normal)" } else { "" }
+        if denoise {
+            format!(", OIDN RT (albedo, normal), emitters seen directly apart at {EMISSION_SPP} spp")
+        } else {
+            String::new()
+        }
     )
 }
 
@@ -549,6 +566,7 @@ fn format_utc(secs: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use lucent_geom::Vec3;
 
     #[test]
     fn dates() {
@@ -623,6 +641,57 @@ mod tests {
             assert_eq!(a.error, b.error, "{}", a.name);
         }
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The Cornell box's light seen directly is taken out of the denoiser's
+    /// input exactly (its inside holds only emission, the light's kd being
+    /// 0) and put back from more samples; the rest is untouched.
+    #[test]
+    fn the_emission_seen_directly_is_split_off_exactly() {
+        let path = crate::root().join("res/scenes/cornell-mitsuba.toml");
+        let (scene, _) = lucent_assets::load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+        let settings = RenderSettings {
+            width: 24,
+            height: 24,
+            spp: 2,
+            max_depth: 4,
+            ..scene.settings
+        };
+        let rs = extract_with(&scene, &lucent_render::ExtractOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        let beauty = render(&rs, &settings, &|_| {}).film;
+        let e = DirectEmission::render(&rs, &settings).unwrap_or_else(|| panic!("the box has a light"));
+        assert_eq!(
+            (e.same_samples.n_samples(), e.antialiased.n_samples()),
+            (2, EMISSION_SPP)
+        );
+        let rest = e.split(&beauty).unwrap_or_else(|| panic!("same size"));
+        let (b, r, aa) = (beauty.to_linear(), rest.to_linear(), e.antialiased.to_linear());
+        let mut inside = 0;
+        for ((b, r), aa) in b.iter().zip(&r).zip(&aa) {
+            assert!(r.is_finite() && r.min_element() >= 0.0, "{r}");
+            if aa.min_element() >= 15.0 {
+                // Every one of 32 camera rays hit the light: all emission.
+                inside += 1;
+                assert!(r.max_element() < 1e-3, "{b} -> {r}");
+            }
+            if *aa == Vec3::ZERO {
+                assert_eq!(b, r, "no emission seen: nothing taken");
+            }
+        }
+        assert!(inside > 0, "the light is in view");
+        let back = e.restore(&rest).unwrap_or_else(|| panic!("same size"));
+        for ((r, aa), out) in r.iter().zip(&aa).zip(back.to_linear()) {
+            assert_eq!(*r + *aa, out);
+        }
+        // 1 spp beauty and EMISSION_SPP: the first sample is the same ray.
+        let one = RenderSettings { spp: 1, ..settings };
+        let e1 = DirectEmission::render(&rs, &one).unwrap_or_else(|| panic!("a light"));
+        assert_eq!(e1.antialiased.n_samples(), EMISSION_SPP);
+        // No emitter, no pass.
+        let seed = crate::root().join("res/scenes/seed.toml");
+        let (seed, _) = lucent_assets::load_scene(&seed).unwrap_or_else(|e| panic!("{e}"));
+        let rs = extract_with(&seed, &lucent_render::ExtractOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        assert!(DirectEmission::render(&rs, &settings).is_none());
     }
 
     #[test]

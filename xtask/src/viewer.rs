@@ -5,6 +5,9 @@
 //!   cycles; prints one JSON line with the displayed frame rate while
 //!   rotating, the resolution scale it settles at and the time from
 //!   releasing the mouse to the first full-resolution frame (medians);
+//!   with `--denoise` the viewer denoises (OIDN), and the line adds the
+//!   time from the release to the first denoised full-resolution still
+//!   and the share of previews shown denoised while rotating;
 //! - `soak`: the viewer's own seeded random input (`--soak`) for a minute,
 //!   checking every displayed camera is finite, the exit is clean and the
 //!   resident memory stays flat (sampled from /proc twice a second).
@@ -31,6 +34,11 @@ struct Opts {
     rotate_s: f32,
     seconds: f32,
     seed: u64,
+    /// Run the viewer with `--denoise` and time the first denoised still.
+    denoise: bool,
+    /// Seconds after the release in which the first full-resolution frame
+    /// must arrive.
+    settle_s: f32,
 }
 
 fn parse_opts(args: &[String]) -> Result<Opts, String> {
@@ -41,6 +49,8 @@ fn parse_opts(args: &[String]) -> Result<Opts, String> {
         rotate_s: 4.0,
         seconds: 60.0,
         seed: 1,
+        denoise: false,
+        settle_s: 1.5,
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -49,6 +59,8 @@ fn parse_opts(args: &[String]) -> Result<Opts, String> {
         match a.as_str() {
             "--size" => o.size = value("--size")?,
             "--no-build" => o.build = false,
+            "--denoise" => o.denoise = true,
+            "--settle-s" => o.settle_s = num(value("--settle-s")?, "--settle-s")?.max(0.5) as f32,
             "--cycles" => o.cycles = num(value("--cycles")?, "--cycles")?.max(1.0) as u32,
             "--rotate-s" => o.rotate_s = num(value("--rotate-s")?, "--rotate-s")?.max(1.0) as f32,
             "--seconds" => o.seconds = num(value("--seconds")?, "--seconds")?.max(1.0) as f32,
@@ -114,7 +126,7 @@ fn json_list(v: &[f64]) -> String {
     format!("[{}]", items.join(","))
 }
 
-/// `cargo xtask view-bench [--size WxH] [--cycles N] [--rotate-s S] [--no-build]`
+/// `cargo xtask view-bench [--size WxH] [--cycles N] [--rotate-s S] [--settle-s S] [--denoise] [--no-build]`
 pub fn bench(args: &[String]) -> Result<(), String> {
     if let Some(res) = under_xvfb("view-bench", args) {
         return res;
@@ -126,7 +138,11 @@ pub fn bench(args: &[String]) -> Result<(), String> {
         .split_once('x')
         .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
         .ok_or_else(|| format!("--size: '{}' is not WxH", o.size))?;
-    let viewer = start_viewer(&bin, &["--size", &o.size, "--stats"])?;
+    let mut viewer_args = vec!["--size", o.size.as_str(), "--stats"];
+    if o.denoise {
+        viewer_args.push("--denoise");
+    }
+    let viewer = start_viewer(&bin, &viewer_args)?;
     let res = bench_cycles(&viewer, &o, w, h);
     let _ = xdotool(&["key", "--delay", "100", "Escape"]);
     let (ok, err) = finish(viewer)?;
@@ -146,6 +162,7 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
     std::thread::sleep(Duration::from_secs(3));
     let (mut fps, mut frame_ms, mut scales, mut release_ms, mut release_internal_ms) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut denoised_ms, mut denoised_moving) = (Vec::new(), Vec::new());
     for _ in 0..o.cycles {
         while viewer.lines.try_recv().is_ok() {}
         let y = (h / 2).to_string();
@@ -174,8 +191,27 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
         chain.extend(strings(&["mouseup", "1"]));
         xdotool(&chain)?;
         let released = Instant::now();
-        std::thread::sleep(Duration::from_millis(1500));
-        let lines: Vec<(Instant, String)> = viewer.lines.try_iter().collect();
+        // The frames up to `settle_s` after the release, and with
+        // `--denoise` on until the first denoised full-resolution still
+        // (at most a minute more).
+        let mut lines: Vec<(Instant, String)> = Vec::new();
+        let deadline = released + Duration::from_secs_f32(o.settle_s);
+        loop {
+            let now = Instant::now();
+            let wait = deadline.saturating_duration_since(now).max(Duration::from_millis(50));
+            match viewer.lines.recv_timeout(wait) {
+                Ok(line) => lines.push(line),
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            }
+            let denoised_still = lines.iter().any(|(t, l)| {
+                *t >= released && l.contains("\"denoised\":true") && field(l, "width") == Some(f64::from(w))
+            });
+            let now = Instant::now();
+            if (now >= deadline && (!o.denoise || denoised_still)) || now >= deadline + Duration::from_secs(60) {
+                break;
+            }
+        }
         let moving: Vec<&String> = lines
             .iter()
             .filter(|(t, l)| *t < released && l.contains("\"refined\":false"))
@@ -210,17 +246,46 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
             *t >= released && field(l, "width") == Some(f64::from(w)) && field(l, "height") == Some(f64::from(h))
         });
         let Some((t_full, line)) = first_full else {
-            return Err("no full-resolution frame within 1.5 s of the release".to_owned());
+            return Err(format!(
+                "no full-resolution frame within {} s of the release",
+                o.settle_s
+            ));
         };
         release_ms.push(t_full.duration_since(released).as_secs_f64() * 1e3);
         release_internal_ms.push(field(line, "since_change_ms").unwrap_or(f64::NAN));
+        if o.denoise {
+            // The first denoised full-resolution still after the release,
+            // and the share of previews denoised while moving.
+            let first_denoised = lines.iter().find(|(t, l)| {
+                *t >= released
+                    && l.contains("\"denoised\":true")
+                    && field(l, "width") == Some(f64::from(w))
+                    && field(l, "height") == Some(f64::from(h))
+            });
+            let Some((t_denoised, _)) = first_denoised else {
+                return Err("no denoised full-resolution frame within a minute of the release".to_owned());
+            };
+            denoised_ms.push(t_denoised.duration_since(released).as_secs_f64() * 1e3);
+            let n = steady.iter().filter(|l| l.contains("\"denoised\":true")).count();
+            denoised_moving.push(n as f64 / steady.len() as f64);
+        }
         std::thread::sleep(Duration::from_millis(500));
     }
+    let denoised = if o.denoise {
+        format!(
+            ",\"release_to_denoised_ms_median\":{:.0},\"denoised_share_moving_median\":{:.2},\"release_to_denoised_ms\":{}",
+            median(&mut denoised_ms),
+            median(&mut denoised_moving),
+            json_list(&denoised_ms)
+        )
+    } else {
+        String::new()
+    };
     Ok(format!(
         "{{\"scene\":\"built-in seed\",\"size\":\"{}\",\"cycles\":{},\"rotate_s\":{},\
 \"rotation_fps_median\":{:.1},\"rotation_frame_ms_median\":{:.1},\"settled_scale_median\":{:.2},\
 \"release_to_full_res_ms_median\":{:.0},\"last_change_to_full_res_ms_median\":{:.0},\
-\"rotation_fps\":{},\"settled_scale\":{},\"release_to_full_res_ms\":{}}}",
+\"rotation_fps\":{},\"settled_scale\":{},\"release_to_full_res_ms\":{}{denoised}}}",
         o.size,
         o.cycles,
         o.rotate_s,

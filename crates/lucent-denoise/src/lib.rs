@@ -19,6 +19,8 @@
 //! before it reaches OIDN: sizes must match, and a NaN, infinite or
 //! negative value in any buffer becomes 0 (counted in [`Denoised`]).
 //! Device errors become [`DenoiseError::Oidn`] with OIDN's message.
+//! [`Denoiser::denoise_render`] keeps the emitters the camera sees out of
+//! the filter and puts them back antialiased ([`emission`]).
 //! All `unsafe` code is in `ffi.rs`.
 //!
 //! ```no_run
@@ -31,6 +33,7 @@
 //! # Ok::<(), lucent_denoise::DenoiseError>(())
 //! ```
 
+pub mod emission;
 mod ffi;
 
 use lucent_geom::Vec3;
@@ -285,6 +288,27 @@ impl Denoiser {
         let pixels = d.pixels.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
         let out = Film::from_pixels(w, h, pixels)
             .ok_or_else(|| DenoiseError::BadInput("the denoised image has the wrong size".into()))?;
+        Ok((out, d))
+    }
+
+    /// [`Denoiser::denoise_film`] of a render whose directly seen emission
+    /// was rendered apart (see [`emission`]): that emission is taken out of
+    /// `film`, the rest denoised, and the antialiased emission added back.
+    /// Without `emission` it is [`Denoiser::denoise_film`].
+    pub fn denoise_render(
+        &self,
+        film: &Film,
+        aovs: Option<&AovFilm>,
+        emission: Option<&emission::DirectEmission>,
+        quality: Quality,
+    ) -> Result<(Film, Denoised), DenoiseError> {
+        let Some(emission) = emission else {
+            return self.denoise_film(film, aovs, quality);
+        };
+        let mismatch = || DenoiseError::BadInput("the emission images are not the beauty image's size".into());
+        let rest = emission.split(film).ok_or_else(mismatch)?;
+        let (denoised, d) = self.denoise_film(&rest, aovs, quality)?;
+        let out = emission.restore(&denoised).ok_or_else(mismatch)?;
         Ok((out, d))
     }
 }

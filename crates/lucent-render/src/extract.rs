@@ -211,6 +211,8 @@ pub struct RenderScene {
     pub light_set: LightSet,
     /// BVH build settings, kept for the lazily built flat tree.
     build: BuildParams,
+    /// Whether the flat tree may be built ([`ExtractOptions::flat_bvh`]).
+    allow_flat: bool,
     /// Every instance's triangles in one render-space BVH, built the first
     /// time [`RenderScene::flat_bvh`] asks for it (only the path tracer
     /// does, so Whitted renders and the viewer's start do not pay for it).
@@ -271,6 +273,12 @@ pub struct ExtractOptions {
     /// that `lucent bench render --all-features` measures the saving
     /// against. Default `false`.
     pub all_features: bool,
+    /// Let the path tracer build and use the one-level tree
+    /// ([`RenderScene::flat_bvh`]), which traces faster but takes a second
+    /// build over every triangle; `false` keeps it on the two-level tree,
+    /// for a one-sample preview of a big scene, where that build costs more
+    /// than it saves. The image is the same either way. Default `true`.
+    pub flat_bvh: bool,
 }
 
 impl Default for ExtractOptions {
@@ -278,6 +286,7 @@ impl Default for ExtractOptions {
         Self {
             bvh_quality: BuildQuality::Default,
             all_features: false,
+            flat_bvh: true,
         }
     }
 }
@@ -346,6 +355,7 @@ pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderSce
         features,
         light_set,
         build: params,
+        allow_flat: options.flat_bvh,
         flat_bvh: OnceLock::new(),
     })
 }
@@ -520,8 +530,12 @@ impl RenderScene {
     /// tracer queries instead of the two-level [`RenderScene::bvh`]: built
     /// on the first call (a clone made after that keeps its own copy of the
     /// tree), `None` for heavily instanced or huge scenes (see
-    /// [`FlatBvh::build`]).
+    /// [`FlatBvh::build`]) or when extracted without it
+    /// ([`ExtractOptions::flat_bvh`]).
     pub fn flat_bvh(&self) -> Option<&FlatBvh> {
+        if !self.allow_flat {
+            return None;
+        }
         self.flat_bvh
             .get_or_init(|| FlatBvh::build(&self.meshes, &self.instances, &self.build, MAX_FLAT_TRIANGLES))
             .as_ref()

@@ -29,6 +29,16 @@
 //! maps), shaded in the frame of the normal-mapped shading normal; the
 //! report's ambient term does not exist here.
 //!
+//! Two settings bend that for the cheap presets, and are off by default:
+//! `free_delta_bounces` lets that many mirror and glass bounces per path
+//! go uncounted against `max_depth` (so a short path still sees through a
+//! glass sphere), and `clamp_indirect` caps every channel of each indirect
+//! contribution (emission or environment found after two or more bounces,
+//! next-event estimation from the second surface on), scaling the
+//! contribution down whole. That clamp is biased, darkening caustics and
+//! bright interreflection, and removes the fireflies that dominate the
+//! error of a few-sample image; references never use it.
+//!
 //! The tracer is specialised on the scene's
 //! [`SceneFeatures`](crate::SceneFeatures), picked once per camera ray:
 //! without emissive materials no path vertex looks up an emitter or weighs
@@ -68,6 +78,11 @@ pub struct PathTracer<'a> {
     max_depth: u32,
     /// Bounces before Russian roulette starts.
     rr_depth: u32,
+    /// Largest channel value of one indirect contribution (infinite: no
+    /// clamp).
+    clamp_indirect: f32,
+    /// Delta bounces per path that do not count toward `max_depth`.
+    free_delta_bounces: u32,
     /// Per material, its BSDF when nothing varies over the surface (no
     /// texture): built once per render, not at every hit.
     plain_bsdfs: Vec<Option<Bsdf>>,
@@ -86,6 +101,12 @@ impl<'a> PathTracer<'a> {
             flat: scene.flat_bvh(),
             max_depth: settings.max_depth,
             rr_depth: settings.rr_depth.max(1),
+            clamp_indirect: if settings.clamp_indirect > 0.0 {
+                settings.clamp_indirect
+            } else {
+                f32::INFINITY
+            },
+            free_delta_bounces: settings.free_delta_bounces,
             plain_bsdfs,
         }
     }
@@ -159,6 +180,8 @@ impl<'a> PathTracer<'a> {
         // Product of the squared relative indices of refraction crossed.
         let mut eta_scale = 1.0f32;
         let mut depth = 0u32;
+        // Delta bounces among `depth` that do not count toward the limit.
+        let mut free = 0u32;
         loop {
             let Some(sh) = self.intersect(&ray) else {
                 let le = match lights.environment() {
@@ -169,7 +192,7 @@ impl<'a> PathTracer<'a> {
                         } else {
                             power_heuristic(prev_pdf, lights.pdf_environment(ray.dir))
                         };
-                        radiance += throughput * le * w;
+                        radiance += self.clamped(throughput * le * w, depth >= 2);
                         le
                     }
                     None => Vec3::ZERO,
@@ -192,10 +215,10 @@ impl<'a> PathTracer<'a> {
                     } else {
                         power_heuristic(prev_pdf, lights.pdf_emitter(index, prev_p, hit.p))
                     };
-                    radiance += throughput * le * w;
+                    radiance += self.clamped(throughput * le * w, depth >= 2);
                 }
             }
-            if depth + 1 >= self.max_depth {
+            if depth - free + 1 >= self.max_depth {
                 if AOV
                     && rec.pending()
                     && let Some((bsdf, material)) = self.bsdf_at(&hit)
@@ -239,7 +262,7 @@ impl<'a> PathTracer<'a> {
                         } else {
                             power_heuristic(ls.pdf, bsdf.pdf(wo, wi))
                         };
-                        radiance += throughput * f * ls.value * (w / ls.pdf);
+                        radiance += self.clamped(throughput * f * ls.value * (w / ls.pdf), depth >= 1);
                     }
                 }
             }
@@ -276,6 +299,9 @@ impl<'a> PathTracer<'a> {
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
             depth += 1;
+            if bs.delta && free < self.free_delta_bounces {
+                free += 1;
+            }
 
             // Russian roulette, once `depth` segments follow the camera ray
             // (Mitsuba: from the sixth surface on with `rr_depth = 5`).
@@ -288,6 +314,19 @@ impl<'a> PathTracer<'a> {
             }
         }
         radiance
+    }
+
+    /// `contribution` scaled down so that no channel exceeds the indirect
+    /// clamp, when it is `indirect` (light that reached the first surface
+    /// by way of another bounce) and a clamp is set; else unchanged.
+    #[inline(always)]
+    fn clamped(&self, contribution: Vec3, indirect: bool) -> Vec3 {
+        let m = contribution.max_element();
+        if indirect && m > self.clamp_indirect {
+            contribution * (self.clamp_indirect / m)
+        } else {
+            contribution
+        }
     }
 
     /// The BSDF at `hit` (texture and vertex colour applied) and its

@@ -23,6 +23,16 @@
 //! measured no closer to the path-traced truth than Gouraud on either test
 //! scene, so it is a flag (`--shading phong`), not a preset.
 //!
+//! The two cheap rungs bend the path tracer where a few samples suffer most
+//! (see [`crate::path`]): up to four mirror and glass bounces do not count
+//! toward their short path limit, so glass shows what lies behind it
+//! instead of black, and `preview` clamps indirect light at
+//! [`PREVIEW_CLAMP`] (biased: caustics come out darker, in exchange for no
+//! fireflies). `preview` also keeps the path tracer on the two-level BVH
+//! (`flat_bvh: false`): at one sample per pixel on half the pixels, the
+//! one-level tree's second build costs more than it saves. `final` and
+//! `reference` use none of this: they converge to the truth.
+//!
 //! A preset may ask for denoising (`denoise` in its [`QualityPreset::settings`]; none of the
 //! built-in ones does, so they all render without Intel Open Image
 //! Denoise installed); `--denoise` adds it to any of them, and `cargo
@@ -55,6 +65,9 @@ pub struct QualityPreset {
     pub settings: RenderOverrides,
     /// Effort of the BVH builds.
     pub bvh_quality: BuildQuality,
+    /// Whether the path tracer builds its one-level tree
+    /// ([`ExtractOptions::flat_bvh`]).
+    pub flat_bvh: bool,
 }
 
 /// The report's Whitted model with Gouraud shading at half resolution, one
@@ -73,14 +86,20 @@ pub const WHITTED: QualityPreset = QualityPreset {
         ..RenderOverrides::NONE
     },
     bvh_quality: BuildQuality::Fast,
+    flat_bvh: true,
 };
+
+/// `preview`'s cap on each indirect contribution (`clamp_indirect`): far
+/// above what a diffuse wall sends on, so it trims only the fireflies of
+/// caustics and bright interreflection.
+pub const PREVIEW_CLAMP: f32 = 1.0;
 
 /// The physical ladder, cheapest first (the viewer's keys F1-F4 in this
 /// order): every preset path traces the same image.
 pub const PRESETS: [QualityPreset; 4] = [
     QualityPreset {
         name: "preview",
-        description: "path tracing, direct light and one bounce, half resolution, 1 sample: a quick, noisy look at the final image",
+        description: "path tracing, direct light and one bounce (glass and mirrors free), indirect light clamped, half resolution, 1 sample: a quick, noisy look at the final image",
         resolution_scale: 0.5,
         settings: RenderOverrides {
             spp: Some(1),
@@ -89,24 +108,29 @@ pub const PRESETS: [QualityPreset; 4] = [
             max_depth: Some(3),
             min_weight: Some(0.01),
             rr_depth: Some(2),
+            clamp_indirect: Some(PREVIEW_CLAMP),
+            free_delta_bounces: Some(4),
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::Fast,
+        flat_bvh: false,
     },
     QualityPreset {
         name: "interactive",
-        description: "path tracing, 8 samples, paths of up to 5 segments: physically based but noisy",
+        description: "path tracing, 8 samples, paths of up to 6 segments (glass and mirrors free): physically based but noisy",
         resolution_scale: 1.0,
         settings: RenderOverrides {
             spp: Some(8),
             integrator: Some(Integrator::Path),
             shading: Some(Shading::Phong),
-            max_depth: Some(5),
+            max_depth: Some(6),
+            free_delta_bounces: Some(4),
             min_weight: Some(0.01),
             rr_depth: Some(3),
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::Default,
+        flat_bvh: true,
     },
     QualityPreset {
         name: "final",
@@ -122,6 +146,7 @@ pub const PRESETS: [QualityPreset; 4] = [
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::Default,
+        flat_bvh: true,
     },
     QualityPreset {
         name: "reference",
@@ -137,6 +162,7 @@ pub const PRESETS: [QualityPreset; 4] = [
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::High,
+        flat_bvh: true,
     },
 ];
 
@@ -186,6 +212,7 @@ impl QualityPreset {
     pub fn extract_options(&self) -> ExtractOptions {
         ExtractOptions {
             bvh_quality: self.bvh_quality,
+            flat_bvh: self.flat_bvh,
             ..ExtractOptions::default()
         }
     }
@@ -276,6 +303,15 @@ mod tests {
             (Integrator::Whitted, Shading::Gouraud)
         );
         assert!(PRESETS[0].resolution_scale < 1.0);
+        // The costly rungs are unbiased: no clamp, Mitsuba's path length.
+        for p in &PRESETS[2..] {
+            assert_eq!(
+                (set(p).clamp_indirect, set(p).free_delta_bounces),
+                (0.0, 0),
+                "{}",
+                p.name
+            );
+        }
         assert_eq!(PRESETS[PRESETS.len() - 1].resolution_scale, 1.0);
     }
 
@@ -296,6 +332,11 @@ mod tests {
                 // One segment shows only emitters; two add direct light.
                 assert!(set(p).max_depth >= 3, "{}", p.name);
             }
+            assert!(
+                set(p).clamp_indirect >= 0.0 && set(p).free_delta_bounces <= 64,
+                "{}",
+                p.name
+            );
         }
     }
 
@@ -379,8 +420,9 @@ mod tests {
     fn extract_options_carry_the_build_quality() {
         for p in all_presets() {
             let mut o = p.extract_options();
-            assert_eq!(o.bvh_quality, p.bvh_quality);
+            assert_eq!((o.bvh_quality, o.flat_bvh), (p.bvh_quality, p.flat_bvh));
             o.bvh_quality = ExtractOptions::default().bvh_quality;
+            o.flat_bvh = ExtractOptions::default().flat_bvh;
             assert_eq!(o, ExtractOptions::default(), "nothing else changes");
         }
     }

@@ -560,6 +560,19 @@ pub(crate) fn depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::E
     checked(d, |v: u32| v <= 64, "max_depth runs from 0 to 64").map(Some)
 }
 
+pub(crate) fn free_bounces<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+    checked(d, |v: u32| v <= 64, "free_delta_bounces runs from 0 to 64").map(Some)
+}
+
+pub(crate) fn clamp_value<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
+    checked(
+        d,
+        |v: f32| (0.0..=1e9).contains(&v),
+        "clamp_indirect runs from 0 (no clamp) to 1e9",
+    )
+    .map(Some)
+}
+
 pub(crate) fn rr_depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
     checked(d, |v: u32| (1..=64).contains(&v), "rr_depth runs from 1 to 64").map(Some)
 }

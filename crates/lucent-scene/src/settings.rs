@@ -13,7 +13,7 @@
 //! Enum settings implement [`Named`], so the file, the flags and the viewer
 //! share one table of names.
 
-use crate::file::{depth, image_size, named, rr_depth, spp, unit_interval};
+use crate::file::{clamp_value, depth, free_bounces, image_size, named, rr_depth, spp, unit_interval};
 use lucent_geom::Named;
 use lucent_shading::color::aces_filmic;
 use serde::Deserialize;
@@ -128,6 +128,17 @@ pub struct RenderSettings {
     /// Denoise the finished image (path tracer only): the app runs Intel
     /// Open Image Denoise guided by the albedo and normal buffers.
     pub denoise: bool,
+    /// Path tracer: the largest value any channel of one indirect
+    /// contribution may add to a sample (light reaching the camera after
+    /// more than one bounce); 0 clamps nothing. Clamping trades bias (bright
+    /// indirect light, caustics above all, comes out darker) for far less
+    /// variance (no fireflies); the cheap presets use it, a reference never.
+    pub clamp_indirect: f32,
+    /// Path tracer: delta bounces (mirror, glass) that do not count toward
+    /// `max_depth`, at most this many per path; 0 keeps Mitsuba's meaning.
+    /// With a short `max_depth`, a glass object then still shows what lies
+    /// behind it instead of black.
+    pub free_delta_bounces: u32,
 }
 
 impl Default for RenderSettings {
@@ -144,6 +155,8 @@ impl Default for RenderSettings {
             integrator: Integrator::Whitted,
             tonemap: Tonemap::Clamp,
             denoise: false,
+            clamp_indirect: 0.0,
+            free_delta_bounces: 0,
         }
     }
 }
@@ -195,6 +208,13 @@ pub struct RenderOverrides {
     pub tonemap: Option<Tonemap>,
     /// Denoise the finished image (Intel Open Image Denoise, path tracer).
     pub denoise: Option<bool>,
+    /// Largest channel value of one indirect contribution (0 to 1e9; 0:
+    /// no clamp).
+    #[serde(default, deserialize_with = "clamp_value")]
+    pub clamp_indirect: Option<f32>,
+    /// Delta bounces that do not count toward `max_depth` (0 to 64).
+    #[serde(default, deserialize_with = "free_bounces")]
+    pub free_delta_bounces: Option<u32>,
 }
 
 impl RenderOverrides {
@@ -211,6 +231,8 @@ impl RenderOverrides {
         integrator: None,
         tonemap: None,
         denoise: None,
+        clamp_indirect: None,
+        free_delta_bounces: None,
     };
 
     /// Writes every setting that is `Some` into `settings`.
@@ -232,6 +254,8 @@ impl RenderOverrides {
         set(&mut s.integrator, self.integrator);
         set(&mut s.tonemap, self.tonemap);
         set(&mut s.denoise, self.denoise);
+        set(&mut s.clamp_indirect, self.clamp_indirect);
+        set(&mut s.free_delta_bounces, self.free_delta_bounces);
     }
 }
 
@@ -267,6 +291,8 @@ mod tests {
             integrator: Some(Integrator::Path),
             tonemap: Some(Tonemap::Filmic),
             denoise: Some(true),
+            clamp_indirect: Some(8.0),
+            free_delta_bounces: Some(9),
         };
         all.apply(&mut s);
         let want = RenderSettings {
@@ -281,6 +307,8 @@ mod tests {
             integrator: Integrator::Path,
             tonemap: Tonemap::Filmic,
             denoise: true,
+            clamp_indirect: 8.0,
+            free_delta_bounces: 9,
         };
         assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
     }

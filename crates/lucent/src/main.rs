@@ -137,6 +137,14 @@ struct QualityArgs {
     /// buffers (path tracer; install the library with `cargo xtask oidn`).
     #[arg(long)]
     denoise: bool,
+    /// Path tracer: cap every channel of each indirect contribution at V
+    /// (biased: no fireflies, darker caustics); 0 clamps nothing.
+    #[arg(long, value_name = "V", value_parser = parse_clamp)]
+    clamp_indirect: Option<f32>,
+    /// Path tracer: mirror and glass bounces that do not count toward
+    /// --max-depth, at most N per path (0 to 64).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=64))]
+    free_delta_bounces: Option<u32>,
 }
 
 impl QualityArgs {
@@ -168,6 +176,8 @@ impl QualityArgs {
             integrator: self.integrator,
             tonemap: self.tonemap,
             denoise: self.denoise.then_some(true),
+            clamp_indirect: self.clamp_indirect,
+            free_delta_bounces: self.free_delta_bounces,
             ..RenderOverrides::NONE
         }
     }
@@ -205,6 +215,13 @@ fn parse_unit(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
         _ => Err(format!("'{s}' is not a number from 0 to 1")),
+    }
+}
+
+fn parse_clamp(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if (0.0..=1e9).contains(&v) => Ok(v),
+        _ => Err(format!("'{s}' is not a number from 0 (no clamp) to 1e9")),
     }
 }
 

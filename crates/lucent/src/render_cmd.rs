@@ -4,6 +4,7 @@ use crate::{QualityArgs, check_exr_path, check_png_path, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use lucent_denoise::emission::DirectEmission;
 use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
 use lucent_render::aov::AovFilm;
@@ -175,7 +176,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let (w, h) = (out.film.width(), out.film.height());
     let mut denoised_note = String::new();
     if let Some(denoiser) = &denoiser {
-        let (film, d) = denoiser.denoise_film(&out.film, aovs.as_ref(), Quality::High)?;
+        // The emitters the camera sees stay out of the filter (see
+        // lucent_denoise::emission); rendered with the samples' settings.
+        let sampled = RenderSettings {
+            spp: out.film.n_samples(),
+            ..settings
+        };
+        let emission = with_threads(threads, || DirectEmission::render(&rs, &sampled))?;
+        let (film, d) = denoiser.denoise_render(&out.film, aovs.as_ref(), emission.as_ref(), Quality::High)?;
         out.film = film;
         let replaced = if d.replaced > 0 {
             format!(", {} non-finite or negative values zeroed first", d.replaced)
