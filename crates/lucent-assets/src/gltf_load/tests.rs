@@ -474,3 +474,43 @@ fn draco_counts_that_disagree_with_the_accessors_are_errors() {
         );
     }
 }
+
+#[test]
+fn alpha_modes_become_alpha_tests_and_blend_is_a_warning_naming_the_material() {
+    let with_mode = |mode: &'static str| {
+        move |s: String| {
+            s.replace(
+                r#""emissiveFactor": [1, 1, 0], "doubleSided": true}"#,
+                &format!(r#""emissiveFactor": [1, 1, 0], "doubleSided": true, "name": "leaves", {mode}}}"#),
+            )
+        }
+    };
+    let material = |mode: &'static str| {
+        let (scene, report) = load_text(document(&data_uri(), with_mode(mode))).unwrap_or_else(|e| panic!("{e}"));
+        let mut q = scene.world.query::<&Material>();
+        let m = q.iter().next().cloned().expect("a material");
+        (m, report.warnings)
+    };
+    let (m, warnings) = material(r#""alphaMode": "MASK", "alphaCutoff": 0.3"#);
+    assert_eq!(m.alpha_mode, lucent_shading::AlphaMode::Mask { cutoff: 0.3 });
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // The base colour factor's alpha (1) is the alpha: kept at 0.3.
+    assert!(m.is_masked() && !m.cut_out(None));
+    let (m, _) = material(r#""alphaMode": "MASK""#);
+    assert_eq!(
+        m.alpha_mode,
+        lucent_shading::AlphaMode::Mask { cutoff: 0.5 },
+        "the default cutoff"
+    );
+    let (m, _) = material(r#""alphaMode": "OPAQUE", "alphaCutoff": 0.9"#);
+    assert!(!m.is_masked());
+    let (m, warnings) = material(r#""alphaMode": "BLEND""#);
+    assert_eq!(m.alpha_mode, lucent_shading::AlphaMode::Mask { cutoff: 0.5 });
+    assert_eq!(
+        warnings,
+        vec![
+            "m/t.gltf: /materials/0/alphaMode: material ('leaves') is BLEND, approximated by an alpha test at 0.5 (no partial transparency)"
+                .to_owned()
+        ]
+    );
+}
