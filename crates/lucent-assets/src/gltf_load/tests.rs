@@ -119,9 +119,11 @@ fn nodes_share_meshes_and_keep_their_hierarchy() {
             (m.emission, m.double_sided, m.ior),
             (Vec3::new(1.0, 1.0, 0.0), true, 1.5)
         );
-        // No lights in the file: the default sky and key light.
-        assert_eq!(scene.environment.background, crate::model_scene::SKY);
-        assert_eq!(scene.world.query::<&Light>().iter().count(), 1);
+        // No lights in the file: the default environment map, no key light.
+        let map = scene.environment.map.as_ref().expect("the default environment");
+        assert_eq!((map.width(), map.height()), (1024, 512));
+        assert_eq!(scene.settings.tonemap, lucent_scene::Tonemap::Filmic);
+        assert_eq!(scene.world.query::<&Light>().iter().count(), 0);
     }
 }
 
