@@ -2,7 +2,7 @@
 //! (so `cargo test` enforces them):
 //! - every Rust file starts with a `//!` comment saying what it is for;
 //! - dependency ownership: hecs only in lucent-scene, minifb only in the
-//!   app, tobj/gltf/mikktspace/image only in lucent-assets (image also in
+//!   app, tobj/gltf/draco-core/mikktspace/image only in lucent-assets (image also in
 //!   the test package), rayon only in lucent-render and lucent-accel, nv-flip and
 //!   plotters (measuring and plotting tools, C++ in nv-flip's case) only
 //!   in xtask, exr only in lucent-assets, libloading (which loads Intel
@@ -23,6 +23,7 @@ const OWNERS: &[(&str, &[&str])] = &[
     ("minifb", &["lucent"]),
     ("tobj", &["lucent-assets"]),
     ("gltf", &["lucent-assets"]),
+    ("draco-core", &["lucent-assets"]),
     ("mikktspace", &["lucent-assets"]),
     ("image", &["lucent-assets", "tests"]),
     ("rayon", &["lucent-render", "lucent-accel"]),

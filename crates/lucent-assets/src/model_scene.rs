@@ -5,26 +5,51 @@
 //!   perspective camera is kept instead).
 //! - Materials are the file's own, or a neutral default (a grey dielectric
 //!   of roughness 0.5 in the metallic-roughness model).
-//! - Lighting, when the file brings no lights: a uniform sky (the
-//!   background, which the path tracer gathers as light) plus a key light
-//!   from above the camera's left shoulder.
+//! - Lighting, when the file brings no lights: image-based, the Royal
+//!   Esplanade HDR panorama (Poly Haven, CC0; `res/envmaps`, compiled in),
+//!   which the path tracer importance-samples as a light, with the filmic
+//!   tone curve for its sun and bright sky. No key light: the panorama's
+//!   sun is one.
 //! - The path tracer at [`MODEL_SPP`] samples per pixel; command-line flags
 //!   override any of it.
 
-use crate::{AssetError, AssetSource, LoadReport, load_mesh_from};
+use crate::{AssetError, AssetSource, LoadReport, MemorySource, load_environment_map, load_mesh_from};
 use lucent_geom::{Affine3A, Vec3};
-use lucent_scene::components::{Camera, Light, Material, OrbitRig};
-use lucent_scene::{Integrator, Scene};
-use lucent_shading::MetallicRoughness;
+use lucent_scene::components::{Camera, Material, OrbitRig};
+use lucent_scene::{Integrator, Scene, Tonemap};
+use lucent_shading::{EnvironmentMap, MetallicRoughness};
 use std::collections::HashMap;
 use std::path::Path;
+use std::sync::{Arc, OnceLock};
 
-/// Radiance of the default sky.
+/// The default environment's name in messages: the file it was built from.
+pub const DEFAULT_ENVIRONMENT: &str = "res/envmaps/royal_esplanade_1k.hdr";
+/// Scale of the default environment's radiance: the panorama as shot
+/// (its sun 84 degrees high; under the filmic curve a white diffuse
+/// surface facing up comes out near 90% grey, facing sideways near 60%).
+pub const DEFAULT_ENVIRONMENT_INTENSITY: f32 = 1.0;
+/// Turn of the default environment about +y, degrees: the sun's azimuth
+/// put behind the default camera's left shoulder, so the front of a model
+/// is lit rather than backlit.
+pub const DEFAULT_ENVIRONMENT_ROTATION_DEG: f32 = 60.0;
+/// Radiance of the constant sky that stands in if the compiled-in panorama
+/// ever failed to decode.
 pub const SKY: Vec3 = Vec3::new(0.45, 0.5, 0.6);
-/// Irradiance of the default key light.
-pub const KEY_LIGHT: f32 = 2.5;
 /// Samples per pixel of a model's scene.
 pub const MODEL_SPP: u32 = 32;
+
+/// The default environment map, decoded once per process.
+pub fn default_environment() -> Result<Arc<EnvironmentMap>, String> {
+    static MAP: OnceLock<Result<Arc<EnvironmentMap>, String>> = OnceLock::new();
+    MAP.get_or_init(|| {
+        let bytes: &'static [u8] = include_bytes!("../../../res/envmaps/royal_esplanade_1k.hdr");
+        let source = MemorySource::new().with_file(DEFAULT_ENVIRONMENT, bytes);
+        load_environment_map(&source, Path::new(DEFAULT_ENVIRONMENT))
+            .map(|(map, _)| Arc::new(map))
+            .map_err(|e| e.to_string())
+    })
+    .clone()
+}
 
 /// What [`surround`] adds.
 #[derive(Clone, Copy, Debug)]
@@ -115,19 +140,22 @@ pub fn surround(scene: &mut Scene, report: &mut LoadReport, path: &Path, what: S
         report.warn(path, "the model has no triangles to show");
     }
     if what.lights {
-        scene.environment.background = SKY;
+        match default_environment() {
+            Ok(map) => {
+                scene.environment.map = Some(map);
+                scene.environment.intensity = DEFAULT_ENVIRONMENT_INTENSITY;
+                scene.environment.rotation_deg = DEFAULT_ENVIRONMENT_ROTATION_DEG;
+            }
+            Err(e) => {
+                report.warn(
+                    path,
+                    format!("the default environment did not load ({e}); a constant sky instead"),
+                );
+                scene.environment.background = SKY;
+            }
+        }
         scene.environment.ambient = Vec3::splat(0.25);
-        // From above and to the camera's left, wherever the camera is.
-        let rig = scene.camera().map(|(_, r)| r).unwrap_or_default();
-        let [x, y, z] = rig.axes();
-        let to_light = (-z + 1.2 * y + 0.6 * x).normalize_or(Vec3::Y);
-        scene.add_light(
-            "key",
-            Light::Directional {
-                to_light,
-                intensity: Vec3::splat(KEY_LIGHT),
-            },
-        );
+        scene.settings.tonemap = Tonemap::Filmic;
     }
     scene.settings.integrator = Integrator::Path;
     scene.settings.spp = MODEL_SPP;

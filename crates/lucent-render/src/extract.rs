@@ -81,6 +81,7 @@ impl VertexReads {
 /// | `reflective` | Whitted mirror rays |
 /// | `textured` | texture coordinate interpolation and texture lookups (per instance, see [`VertexReads`]); the path tracer's per-hit BSDF set-up |
 /// | `emissive` | the light set's table of emissive triangles per instance, and the path tracer's emission lookup and MIS weight at every path vertex |
+/// | `alpha_tested` | the alpha test of hits (see `alpha.rs`): closest-hit and any-hit queries are the traversal core's own |
 ///
 /// `point_lights`, `directional_lights`, `smooth_normals` and
 /// `vertex_colors` describe the scene for `lucent info`; their work is done
@@ -104,6 +105,9 @@ pub struct SceneFeatures {
     pub directional_lights: bool,
     /// Some instance's mesh has vertex normals (smooth shading).
     pub smooth_normals: bool,
+    /// Some instance's material is alpha-tested (glTF `MASK`): hits are
+    /// tested against its alpha before they are accepted.
+    pub alpha_tested: bool,
     /// Some instance's mesh has vertex colours.
     pub vertex_colors: bool,
 }
@@ -118,6 +122,7 @@ impl SceneFeatures {
         point_lights: true,
         directional_lights: true,
         smooth_normals: true,
+        alpha_tested: true,
         vertex_colors: true,
     };
 
@@ -128,7 +133,7 @@ impl SceneFeatures {
     /// use lucent_render::SceneFeatures;
     /// let f = SceneFeatures { reflective: true, emissive: true, ..SceneFeatures::default() };
     /// assert_eq!(f.names(), ["reflective", "emissive"]);
-    /// assert_eq!(SceneFeatures::ALL.names().len(), 8);
+    /// assert_eq!(SceneFeatures::ALL.names().len(), 9);
     /// ```
     pub fn names(&self) -> Vec<&'static str> {
         [
@@ -139,6 +144,7 @@ impl SceneFeatures {
             ("point_lights", self.point_lights),
             ("directional_lights", self.directional_lights),
             ("smooth_normals", self.smooth_normals),
+            ("alpha_tested", self.alpha_tested),
             ("vertex_colors", self.vertex_colors),
         ]
         .into_iter()
@@ -170,6 +176,7 @@ impl SceneFeatures {
             f.emissive |= emits(m);
             f.smooth_normals |= mesh.normals().is_some();
             f.vertex_colors |= mesh.colors().is_some();
+            f.alpha_tested |= m.is_masked();
         }
         f
     }

@@ -101,6 +101,23 @@ impl FlatBvh {
         &self.bvh
     }
 
+    /// Calls `visit` for every hit with `0 < t < t_max`, in traversal
+    /// order, until it returns `true`; returns whether it was stopped.
+    #[inline]
+    pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(SceneHit) -> bool) -> bool {
+        self.bvh.for_each_hit(ray, t_max, |h| {
+            self.owner.get(h.prim as usize).is_some_and(|&(instance, prim)| {
+                visit(SceneHit {
+                    t: h.t,
+                    u: h.u,
+                    v: h.v,
+                    prim,
+                    instance,
+                })
+            })
+        })
+    }
+
     /// Memory of the tree and the owner table, in bytes.
     pub fn bytes(&self) -> usize {
         self.bvh.bytes() + self.owner.len() * size_of::<(u32, u32)>()

@@ -36,6 +36,7 @@
 //! ```
 #![forbid(unsafe_code)]
 
+mod alpha;
 pub mod aov;
 mod camera;
 pub mod envlight;

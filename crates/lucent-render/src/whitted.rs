@@ -90,7 +90,12 @@ impl<'a> Whitted<'a> {
         weight: f32,
         stats: &mut RayStats,
     ) -> Vec3 {
-        let Some(hit) = self.scene.bvh.intersect(ray, f32::INFINITY) else {
+        let hit = if self.scene.features.alpha_tested {
+            self.scene.closest_kept(&self.scene.bvh, ray, f32::INFINITY)
+        } else {
+            self.scene.bvh.intersect(ray, f32::INFINITY)
+        };
+        let Some(hit) = hit else {
             return self.scene.environment_radiance(ray.dir);
         };
         let scene = self.scene;
@@ -226,15 +231,19 @@ impl<'a> Whitted<'a> {
         let ray = Ray::new(surf.offset(smooth_point(surf), side), ls.to_light);
         let bvh = &self.scene.bvh;
         if !TRANSMISSIVE {
-            return if bvh.occluded(&ray, ls.distance) {
-                Vec3::ZERO
+            let blocked = if self.scene.features.alpha_tested {
+                self.scene.occluded_kept(bvh, &ray, ls.distance)
             } else {
-                Vec3::ONE
+                bvh.occluded(&ray, ls.distance)
             };
+            return if blocked { Vec3::ZERO } else { Vec3::ONE };
         }
         let mut transmittance = Vec3::ONE;
         let mut crossings = Crossings::default();
         bvh.for_each_hit(&ray, ls.distance, |hit| {
+            if self.scene.features.alpha_tested && self.scene.cut_out(&hit) {
+                return false;
+            }
             if !crossings.first_time(hit.instance, hit.t) {
                 return false;
             }

@@ -262,7 +262,7 @@ fn bench_render_measures_the_specialised_and_the_all_features_renderer() {
     );
     let all = json(&["--without", "sphere", "--all-features"]);
     assert_eq!(all["all_features"], true);
-    assert_eq!(all["features"].as_array().map(Vec::len), Some(8));
+    assert_eq!(all["features"].as_array().map(Vec::len), Some(9));
     // The same image means the same rays.
     assert_eq!(lean["rays"], all["rays"]);
     assert!(lean["triangles"].as_u64() < json(&[])["triangles"].as_u64());

@@ -201,8 +201,9 @@ pub(super) fn convert(
             cutoff: m.alpha_cutoff().unwrap_or(0.5),
         },
         gltf::material::AlphaMode::Blend => {
+            let name = m.name().map_or_else(String::new, |n| format!(" ('{n}')"));
             warnings.push(format!(
-                "{ptr}/alphaMode: BLEND is approximated by an alpha test at 0.5 (no partial transparency)"
+                "{ptr}/alphaMode: material{name} is BLEND, approximated by an alpha test at 0.5 (no partial transparency)"
             ));
             AlphaMode::Mask { cutoff: 0.5 }
         }

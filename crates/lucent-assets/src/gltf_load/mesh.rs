@@ -1,9 +1,12 @@
 //! glTF primitives to triangle meshes: triangle lists, strips and fans,
 //! indexed or not; positions, normals, tangents, texture coordinates (`v`
 //! flipped to Lucent's `v` up) and vertex colours; MikkTSpace tangents
-//! where a normal-mapped primitive has none.
+//! where a normal-mapped primitive has none. A primitive with
+//! `KHR_draco_mesh_compression` takes its indices and compressed
+//! attributes from the decoded Draco stream instead of its accessors.
 
 use super::data::Buffers;
+use super::draco;
 use gltf::Semantic;
 use gltf::mesh::Mode;
 use lucent_geom::{TriMesh, Vec2, Vec3, Vec4};
@@ -23,6 +26,7 @@ pub(super) struct PrimitiveNeeds {
 /// pointer of the offending part.
 pub(super) fn primitive_mesh(
     buffers: &Buffers,
+    views: &[gltf::buffer::View<'_>],
     prim: &gltf::Primitive<'_>,
     ptr: &str,
     needs: &PrimitiveNeeds,
@@ -33,8 +37,34 @@ pub(super) fn primitive_mesh(
     }
     let attr = |s: Semantic| prim.get(&s);
     let at = |name: &str, e: String| format!("{ptr}/attributes/{name}: {e}");
+    let draco = match prim.extension_value(draco::EXTENSION) {
+        Some(ext) => Some(draco::decode(buffers, views, prim, ext, ptr)?),
+        None => None,
+    };
+    // An attribute's components: from the Draco stream when it holds it,
+    // else from its accessor.
+    let read = |acc: &gltf::Accessor<'_>, name: &str| -> Result<(Vec<f32>, usize), String> {
+        match &draco {
+            Some(d) if d.has(name) => {
+                let n = match acc.dimensions() {
+                    gltf::accessor::Dimensions::Scalar => 1,
+                    gltf::accessor::Dimensions::Vec2 => 2,
+                    gltf::accessor::Dimensions::Vec3 => 3,
+                    gltf::accessor::Dimensions::Vec4 => 4,
+                    d => {
+                        return Err(at(
+                            name,
+                            format!("accessor {} has type {d:?}, which is not vertex data", acc.index()),
+                        ));
+                    }
+                };
+                Ok((d.read_f32(name, acc, n)?, n))
+            }
+            _ => buffers.read_f32(acc).map_err(|e| at(name, e)),
+        }
+    };
     let pos_acc = attr(Semantic::Positions).ok_or_else(|| format!("{ptr}/attributes: has no POSITION"))?;
-    let (pos, n) = buffers.read_f32(&pos_acc).map_err(|e| at("POSITION", e))?;
+    let (pos, n) = read(&pos_acc, "POSITION")?;
     if n != 3 {
         return Err(at("POSITION", format!("accessor {} is not VEC3", pos_acc.index())));
     }
@@ -42,7 +72,7 @@ pub(super) fn primitive_mesh(
     let n_vertices = positions.len();
     let vec_attr = |s: Semantic, name: &str, want: &[usize]| -> Result<Option<(Vec<f32>, usize)>, String> {
         let Some(acc) = attr(s) else { return Ok(None) };
-        let (v, n) = buffers.read_f32(&acc).map_err(|e| at(name, e))?;
+        let (v, n) = read(&acc, name)?;
         if !want.contains(&n) {
             return Err(at(name, format!("accessor {} has {n} components", acc.index())));
         }
@@ -65,8 +95,21 @@ pub(super) fn primitive_mesh(
     let colors = vec_attr(Semantic::Colors(0), "COLOR_0", &[3, 4])?;
 
     // Corner indices in file order, then triangles by mode.
-    let corners: Vec<u32> = match prim.indices() {
-        Some(acc) => {
+    let corners: Vec<u32> = match (prim.indices(), &draco) {
+        (acc, Some(d)) => {
+            if d.n_points() != n_vertices {
+                return Err(at(
+                    "POSITION",
+                    format!(
+                        "accessor {} has {n_vertices} elements but the Draco stream decodes {} points",
+                        pos_acc.index(),
+                        d.n_points()
+                    ),
+                ));
+            }
+            d.indices(acc.as_ref())?
+        }
+        (Some(acc), None) => {
             let idx = buffers.read_u32(&acc).map_err(|e| format!("{ptr}/indices: {e}"))?;
             if let Some((k, &bad)) = idx.iter().enumerate().find(|&(_, &i)| i as usize >= n_vertices) {
                 return Err(format!(
@@ -76,7 +119,7 @@ pub(super) fn primitive_mesh(
             }
             idx
         }
-        None => (0..u32::try_from(n_vertices).map_err(|_| format!("{ptr}: too many vertices"))?).collect(),
+        (None, None) => (0..u32::try_from(n_vertices).map_err(|_| format!("{ptr}: too many vertices"))?).collect(),
     };
     let triangles = assemble(&corners, prim.mode());
     if !corners.len().is_multiple_of(3) && prim.mode() == Mode::Triangles {

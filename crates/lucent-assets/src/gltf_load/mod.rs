@@ -12,6 +12,7 @@
 //! the colour multiplying per channel.
 
 mod data;
+mod draco;
 mod material;
 mod mesh;
 #[cfg(test)]
@@ -31,6 +32,7 @@ use std::path::Path;
 /// Extensions whose meaning Lucent renders (others in `extensionsUsed`
 /// are warnings, in `extensionsRequired` errors).
 pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_draco_mesh_compression",
     "KHR_lights_punctual",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
@@ -72,7 +74,8 @@ pub fn load_gltf_from(
     }
     let root = document.into_json();
     precheck(&root).map_err(fail)?;
-    let document = gltf::Document::from_json(root).map_err(|e| fail(document_error(e)))?;
+    validate(&root).map_err(|e| fail(document_error(e)))?;
+    let document = gltf::Document::from_json_without_validation(root);
     let mut warnings = Vec::new();
     for ext in document.extensions_used() {
         if !SUPPORTED_EXTENSIONS.contains(&ext) {
@@ -89,6 +92,7 @@ pub fn load_gltf_from(
         let mut b = Builder {
             scene: &mut scene,
             buffers: &buffers,
+            views: document.views().collect(),
             textures: material::Textures::new(&buffers, source, path, options.skip_images),
             warnings: &mut warnings,
             meshes: HashMap::new(),
@@ -165,6 +169,32 @@ fn precheck(root: &gltf::json::Root) -> Result<(), String> {
     Ok(())
 }
 
+/// gltf-json's validation, less two of its refusals that the
+/// specification does not make: an accessor without a buffer view (it
+/// reads as zeros, and a Draco-compressed primitive's accessors have none)
+/// and a required extension gltf does not model (Lucent's own
+/// [`SUPPORTED_EXTENSIONS`] check has already run).
+fn validate(root: &gltf::json::Root) -> Result<(), gltf::Error> {
+    use gltf::json::validation::{Error, Validate};
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        let p = path();
+        let no_view = error == Error::Missing
+            && p.0.strip_prefix("accessors[").is_some_and(|rest| {
+                rest.split_once(']')
+                    .is_some_and(|(i, tail)| i.bytes().all(|b| b.is_ascii_digit()) && tail == ".bufferView")
+            });
+        if !no_view && error != Error::Unsupported {
+            errors.push((p, error));
+        }
+    });
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(gltf::Error::Validation(errors))
+    }
+}
+
 /// A readable message for a document that does not parse or validate.
 fn document_error(e: gltf::Error) -> String {
     match e {
@@ -205,6 +235,8 @@ fn json_pointer(path: &str) -> String {
 struct Builder<'s, 'd> {
     scene: &'s mut Scene,
     buffers: &'d Buffers,
+    /// The document's buffer views, by index (Draco streams name theirs).
+    views: Vec<gltf::buffer::View<'d>>,
     textures: material::Textures<'d>,
     warnings: &'s mut Vec<String>,
     /// Mesh entity per (mesh, primitive), `None` for primitives without
@@ -245,7 +277,7 @@ impl Builder<'_, '_> {
                             uv_set,
                             tangents: needs_tangents,
                         };
-                        let tri = mesh::primitive_mesh(self.buffers, &prim, &pptr, &needs, self.warnings)?;
+                        let tri = mesh::primitive_mesh(self.buffers, &self.views, &prim, &pptr, &needs, self.warnings)?;
                         if tri.is_none() {
                             self.warnings
                                 .push(format!("{pptr}/mode: points and lines are not rendered"));

@@ -119,9 +119,11 @@ fn nodes_share_meshes_and_keep_their_hierarchy() {
             (m.emission, m.double_sided, m.ior),
             (Vec3::new(1.0, 1.0, 0.0), true, 1.5)
         );
-        // No lights in the file: the default sky and key light.
-        assert_eq!(scene.environment.background, crate::model_scene::SKY);
-        assert_eq!(scene.world.query::<&Light>().iter().count(), 1);
+        // No lights in the file: the default environment map, no key light.
+        let map = scene.environment.map.as_ref().expect("the default environment");
+        assert_eq!((map.width(), map.height()), (1024, 512));
+        assert_eq!(scene.settings.tonemap, lucent_scene::Tonemap::Filmic);
+        assert_eq!(scene.world.query::<&Light>().iter().count(), 0);
     }
 }
 
@@ -245,23 +247,36 @@ fn bad_data_is_an_error_naming_the_json_pointer() {
 #[test]
 fn shared_gltf_files_load_with_their_triangle_counts() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/assets");
-    // The two boxes are Draco-compressed (KHR_draco_mesh_compression in
-    // extensionsRequired), which Lucent cannot decode: a clear error.
-    for file in ["gltf-boxes/Box.glb", "gltf-boxes/BoxTextured.glb"] {
+    // The two boxes are Draco-compressed (KHR_draco_mesh_compression).
+    for (file, textured) in [("gltf-boxes/Box.glb", false), ("gltf-boxes/BoxTextured.glb", true)] {
         let path = root.join(file);
         if !path.exists() {
             eprintln!("skipped: {} is absent", path.display());
             continue;
         }
-        let err = crate::load_scene(&path)
-            .map(|_| ())
-            .err()
-            .map(|e| e.to_string())
-            .unwrap_or_default();
-        assert!(
-            err.ends_with("/extensionsRequired/0: extension KHR_draco_mesh_compression is required but not supported"),
-            "{err}"
-        );
+        let (scene, report) = crate::load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert!(report.warnings.is_empty(), "{file}: {:?}", report.warnings);
+        let mut q = scene.world.query::<&Mesh>();
+        let meshes: Vec<_> = q.iter().map(|m| m.0.clone()).collect();
+        let [mesh] = meshes.as_slice() else {
+            panic!("{file}: {} meshes", meshes.len())
+        };
+        assert_eq!((mesh.n_triangles(), mesh.n_vertices()), (12, 24), "{file}");
+        // A unit cube around the origin, with the file's face normals.
+        for p in mesh.positions() {
+            assert!(p.abs().abs_diff_eq(Vec3::splat(0.5), 1e-6), "{file}: {p}");
+        }
+        let normals = mesh.normals().expect("the file's normals");
+        for n in normals {
+            assert!(
+                (n.length() - 1.0).abs() < 1e-3 && n.abs().max_element() > 0.999,
+                "{file}: {n}"
+            );
+        }
+        assert_eq!(mesh.uvs().is_some(), textured, "{file}");
+        let mut q = scene.world.query::<&Material>();
+        let m = q.iter().next().expect("the box's material");
+        assert_eq!(m.diffuse_map.is_some(), textured, "{file}");
     }
     for (file, tris) in [("gltf-damaged-helmet/DamagedHelmet.gltf", 15452)] {
         let path = root.join(file);
@@ -296,4 +311,208 @@ fn shared_gltf_files_load_with_their_triangle_counts() {
             );
         }
     }
+}
+
+/// A GLB container around `json` and `bin`.
+fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
+    let mut j = json.as_bytes().to_vec();
+    while !j.len().is_multiple_of(4) {
+        j.push(b' ');
+    }
+    let mut b = bin.to_vec();
+    while !b.len().is_multiple_of(4) {
+        b.push(0);
+    }
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}
+
+/// A Draco-compressed triangle whose stream (`bin`, buffer view 0) may be
+/// anything; `patch` edits the JSON text.
+fn draco_glb(bin: &[u8], patch: impl Fn(String) -> String) -> Vec<u8> {
+    let json = format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+  "extensionsUsed": ["KHR_draco_mesh_compression"], "extensionsRequired": ["KHR_draco_mesh_compression"],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 1}}, "indices": 0,
+     "extensions": {{"KHR_draco_mesh_compression": {{"bufferView": 0, "attributes": {{"POSITION": 0}}}}}}}}]}}],
+  "accessors": [{{"componentType": 5123, "count": 3, "type": "SCALAR"}},
+                {{"componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": {}}}],
+  "buffers": [{{"byteLength": {}}}]}}"#,
+        bin.len(),
+        bin.len()
+    );
+    glb(&patch(json), bin)
+}
+
+/// An edit of a test document's JSON text.
+type Patch = fn(String) -> String;
+
+fn load_glb(bytes: Vec<u8>) -> Result<(Scene, LoadReport), String> {
+    let src = MemorySource::new().with_file("m/d.glb", bytes);
+    crate::load_scene_from(&src, Path::new("m/d.glb")).map_err(|e| e.to_string())
+}
+
+#[test]
+fn bad_draco_data_is_an_error_naming_the_json_pointer() {
+    const EXT: &str = "/meshes/0/primitives/0/extensions/KHR_draco_mesh_compression";
+    let cases: [(&[u8], Patch, String); 5] = [
+        (
+            b"not a Draco stream at all",
+            |s| s,
+            format!("{EXT}: the Draco stream in buffer view 0 does not decode: "),
+        ),
+        (
+            b"DRACO\x02\x02\x01\x01\x00\x00",
+            |s| s,
+            format!("{EXT}: the Draco stream in buffer view 0 does not decode: "),
+        ),
+        (
+            b"DRACO",
+            |s| s.replace(r#""bufferView": 0, "attributes""#, r#""bufferView": 7, "attributes""#),
+            format!("{EXT}/bufferView: buffer view 7 does not exist (1 buffer views)"),
+        ),
+        (
+            b"DRACO",
+            |s| s.replace(r#""byteLength": 5}],"#, r#""byteLength": 500}],"#),
+            format!("{EXT}/bufferView: buffer view 0 (bytes 0 to 500) reads past the end of buffer 0"),
+        ),
+        (
+            b"DRACO",
+            |s| {
+                s.replace(
+                    r#""attributes": {"POSITION": 0}}"#,
+                    r#""attributes": {"POSITION": "zero"}}"#,
+                )
+            },
+            format!("{EXT}/attributes/POSITION: not a Draco attribute id"),
+        ),
+    ];
+    for (i, (bin, patch, expected)) in cases.into_iter().enumerate() {
+        let err = load_glb(draco_glb(bin, patch)).map(|_| ()).err().unwrap_or_default();
+        assert!(err.starts_with(&format!("m/d.glb: {expected}")), "case {i}: {err}");
+    }
+}
+
+#[test]
+fn draco_counts_that_disagree_with_the_accessors_are_errors() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/assets/gltf-boxes/Box.glb");
+    let Ok(file) = std::fs::read(&path) else {
+        eprintln!("skipped: {} is absent", path.display());
+        return;
+    };
+    // Box.glb's Draco stream: buffer view 0, 118 bytes at the start of BIN.
+    let json_len = u32::from_le_bytes([file[12], file[13], file[14], file[15]]) as usize;
+    let stream = &file[20 + json_len + 8..20 + json_len + 8 + 118];
+    let ok = |s: String| s;
+    let (scene, _) = load_glb(draco_glb(stream, |s| {
+        ok(s)
+            .replace(r#""count": 3, "type": "VEC3""#, r#""count": 24, "type": "VEC3""#)
+            .replace(r#""count": 3, "type": "SCALAR""#, r#""count": 36, "type": "SCALAR""#)
+            .replace(r#""attributes": {"POSITION": 0}}"#, r#""attributes": {"POSITION": 1}}"#)
+    }))
+    .unwrap_or_else(|e| panic!("{e}"));
+    let n: usize = scene.world.query::<&Mesh>().iter().map(|m| m.0.n_triangles()).sum();
+    assert_eq!(n, 12);
+    let cases: [(Patch, &str); 5] = [
+        (
+            |s| {
+                s.replace(r#""count": 3, "type": "VEC3""#, r#""count": 30, "type": "VEC3""#)
+                    .replace(r#""count": 3, "type": "SCALAR""#, r#""count": 36, "type": "SCALAR""#)
+                    .replace(r#""attributes": {"POSITION": 0}}"#, r#""attributes": {"POSITION": 1}}"#)
+            },
+            "/attributes/POSITION: accessor 1 has 30 elements but the Draco stream decodes 24 points",
+        ),
+        (
+            |s| {
+                s.replace(r#""count": 3, "type": "SCALAR""#, r#""count": 36, "type": "SCALAR""#)
+                    .replace(r#""attributes": {"POSITION": 0}}"#, r#""attributes": {"POSITION": 1}}"#)
+            },
+            // POSITION declares 3 points: the decode may not make 24.
+            "the Draco stream in buffer view 0 does not decode: Decode limit exceeded",
+        ),
+        (
+            |s| {
+                s.replace(r#""count": 3, "type": "VEC3""#, r#""count": 24, "type": "VEC3""#)
+                    .replace(r#""count": 3, "type": "SCALAR""#, r#""count": 30, "type": "SCALAR""#)
+                    .replace(r#""attributes": {"POSITION": 0}}"#, r#""attributes": {"POSITION": 1}}"#)
+            },
+            // The accessors bound the decode: 10 triangles declared, 12 in the stream.
+            "the Draco stream in buffer view 0 does not decode: ",
+        ),
+        (
+            |s| {
+                s.replace(r#""count": 3, "type": "VEC3""#, r#""count": 24, "type": "VEC3""#)
+                    .replace(r#""count": 3, "type": "SCALAR""#, r#""count": 36, "type": "SCALAR""#)
+                    .replace(r#""attributes": {"POSITION": 0}}"#, r#""attributes": {"POSITION": 5}}"#)
+            },
+            "/attributes/POSITION: the Draco stream has no attribute with id 5",
+        ),
+        (
+            |s| {
+                s.replace(r#""count": 3, "type": "VEC3""#, r#""count": 24, "type": "VEC2""#)
+                    .replace(r#""count": 3, "type": "SCALAR""#, r#""count": 36, "type": "SCALAR""#)
+                    .replace(r#""attributes": {"POSITION": 0}}"#, r#""attributes": {"POSITION": 1}}"#)
+            },
+            "/attributes/POSITION: Draco attribute 1 has 3 components but accessor 1 has 2",
+        ),
+    ];
+    for (i, (patch, expected)) in cases.into_iter().enumerate() {
+        let err = load_glb(draco_glb(stream, patch)).map(|_| ()).err().unwrap_or_default();
+        assert!(
+            err.starts_with("m/d.glb: /meshes/0/primitives/0/extensions/KHR_draco_mesh_compression")
+                && err.contains(expected),
+            "case {i}: {err}"
+        );
+    }
+}
+
+#[test]
+fn alpha_modes_become_alpha_tests_and_blend_is_a_warning_naming_the_material() {
+    let with_mode = |mode: &'static str| {
+        move |s: String| {
+            s.replace(
+                r#""emissiveFactor": [1, 1, 0], "doubleSided": true}"#,
+                &format!(r#""emissiveFactor": [1, 1, 0], "doubleSided": true, "name": "leaves", {mode}}}"#),
+            )
+        }
+    };
+    let material = |mode: &'static str| {
+        let (scene, report) = load_text(document(&data_uri(), with_mode(mode))).unwrap_or_else(|e| panic!("{e}"));
+        let mut q = scene.world.query::<&Material>();
+        let m = q.iter().next().cloned().expect("a material");
+        (m, report.warnings)
+    };
+    let (m, warnings) = material(r#""alphaMode": "MASK", "alphaCutoff": 0.3"#);
+    assert_eq!(m.alpha_mode, lucent_shading::AlphaMode::Mask { cutoff: 0.3 });
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // The base colour factor's alpha (1) is the alpha: kept at 0.3.
+    assert!(m.is_masked() && !m.cut_out(None));
+    let (m, _) = material(r#""alphaMode": "MASK""#);
+    assert_eq!(
+        m.alpha_mode,
+        lucent_shading::AlphaMode::Mask { cutoff: 0.5 },
+        "the default cutoff"
+    );
+    let (m, _) = material(r#""alphaMode": "OPAQUE", "alphaCutoff": 0.9"#);
+    assert!(!m.is_masked());
+    let (m, warnings) = material(r#""alphaMode": "BLEND""#);
+    assert_eq!(m.alpha_mode, lucent_shading::AlphaMode::Mask { cutoff: 0.5 });
+    assert_eq!(
+        warnings,
+        vec![
+            "m/t.gltf: /materials/0/alphaMode: material ('leaves') is BLEND, approximated by an alpha test at 0.5 (no partial transparency)"
+                .to_owned()
+        ]
+    );
 }
