@@ -651,8 +651,10 @@ mod tests {
         let path = crate::root().join("res/scenes/cornell-mitsuba.toml");
         let (scene, _) = lucent_assets::load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
         let settings = RenderSettings {
-            width: 24,
-            height: 24,
+            // The light is a thin strip: at this size a few rows of pixels
+            // lie wholly inside it.
+            width: 64,
+            height: 64,
             spp: 2,
             max_depth: 4,
             ..scene.settings
