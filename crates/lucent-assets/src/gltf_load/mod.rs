@@ -61,6 +61,7 @@ pub fn load_gltf_from(
 ) -> Result<(Scene, LoadReport), AssetError> {
     let bytes = source.read(path)?;
     let fail = |message: String| AssetError::format(path, message);
+    check_glb_header(&bytes).map_err(fail)?;
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| fail(document_error(e)))?;
     // Required extensions first: their data may not validate without them
@@ -145,6 +146,29 @@ pub fn load_gltf_from(
         },
     );
     Ok((scene, report))
+}
+
+/// Checks what the gltf crate's GLB reader subtracts without checking: a
+/// header whose total length is below the header's own 12 bytes (found by
+/// the fuzz target: an overflow panic where overflow checks are on, a
+/// wrapped length elsewhere).
+fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let Some(length) = bytes.get(8..12) else {
+        return Err(format!(
+            "GLB container: the file has {} bytes, fewer than the 12-byte header",
+            bytes.len()
+        ));
+    };
+    let length = u32::from_le_bytes([length[0], length[1], length[2], length[3]]);
+    if length < 12 {
+        return Err(format!(
+            "GLB container: byte 8: length {length} is shorter than the 12-byte header"
+        ));
+    }
+    Ok(())
 }
 
 /// Checks what gltf-json's validation indexes without checking (it

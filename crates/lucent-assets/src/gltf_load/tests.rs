@@ -516,3 +516,30 @@ fn alpha_modes_become_alpha_tests_and_blend_is_a_warning_naming_the_material() {
         ]
     );
 }
+
+#[test]
+fn a_glb_header_shorter_than_itself_is_an_error_not_an_overflow() {
+    // Found by the glTF fuzz target: length 0 in the GLB header made the
+    // gltf crate subtract 12 from it.
+    let mut bytes = b"glTF".to_vec();
+    bytes.extend_from_slice(&2u32.to_le_bytes());
+    bytes.extend_from_slice(&0u32.to_le_bytes());
+    bytes.resize(64, 0);
+    let err = load_glb(bytes).map(|_| ()).err().unwrap_or_default();
+    assert_eq!(
+        err,
+        "m/d.glb: GLB container: byte 8: length 0 is shorter than the 12-byte header"
+    );
+    let err = load_glb(b"glTF\x02\0\0\0".to_vec())
+        .map(|_| ())
+        .err()
+        .unwrap_or_default();
+    assert!(err.contains("fewer than the 12-byte header"), "{err}");
+    // The fuzzer's own inputs.
+    for file in ["gltf-glb-length-0.glb", "gltf-glb-length-short.glb"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fuzz").join(file);
+        let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let err = load_glb(bytes).map(|_| ()).err().unwrap_or_default();
+        assert!(err.contains("shorter than the 12-byte header"), "{file}: {err}");
+    }
+}
