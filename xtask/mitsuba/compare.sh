@@ -15,6 +15,12 @@
 #                                                      (default 64 spp, seeds "11,12,13,14")
 #   xtask/mitsuba/compare.sh blocks STEM              bias check: 8x8-block means of STEM.exr
 #                                                      against the reference's
+#   xtask/mitsuba/compare.sh heavy [ROUNDS] [SPP]     interleaved timings of the heavy scene
+#                                                      (res/scenes/heavy.toml, 2.16 M instanced
+#                                                      triangles; Mitsuba's twin by heavy.py),
+#                                                      default 5 rounds of 16 spp, then both renders'
+#                                                      RMSE against a 1024-spp Mitsuba reference
+#                                                      (rendered once into OUT)
 #
 # env: OUT=/tmp/lucent-vs-mitsuba  PY=/tmp/mts/bin/python (a venv with the peer's
 #      requirements.txt: python3 -m venv /tmp/mts && /tmp/mts/bin/pip install -r
@@ -120,8 +126,36 @@ case $cmd in
     "$PY" "$HELP" summarize "$RES"
     compare "$OUT/bench_lucent" "$OUT/bench_mitsuba"
     ;;
+  heavy)
+    ROUNDS=${2:-5}
+    SPP=${3:-16}
+    HEAVY=$ROOT/res/scenes/heavy.toml
+    RES=$OUT/heavy.jsonl
+    : >"$RES"
+    for round in $(seq "$ROUNDS"); do
+      before=$(load)
+      line=$(lock "$LUCENT" render "$HEAVY" --spp "$SPP" --seed "$round" --exr "$OUT/heavy_lucent.exr" \
+        -o "$OUT/heavy_lucent.png" "${thread_args[@]}")
+      s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
+      echo "{\"round\":$round,\"who\":\"lucent\",\"spp\":$SPP,\"render_s\":$s,\"load\":\"$before\"}" | tee -a "$RES"
+      before=$(load)
+      json=$(lock "$PY" "$ROOT/xtask/mitsuba/heavy.py" render --spp "$SPP" --seed "$round" \
+        --out "$OUT/heavy_mitsuba" 2>/dev/null | tail -1)
+      s=$("$PY" -c 'import json,sys; print(json.loads(sys.argv[1])["render_s"])' "$json")
+      echo "{\"round\":$round,\"who\":\"mitsuba\",\"spp\":$SPP,\"render_s\":$s,\"load\":\"$before\"}" | tee -a "$RES"
+    done
+    echo "load after: $(load)"
+    "$PY" "$HELP" summarize "$RES"
+    # The last round's renders against Mitsuba's reference of the heavy
+    # scene, made once (1024 spp, under nice) and kept in OUT.
+    if [[ ! -f $OUT/heavy_ref.exr ]]; then
+      nice -n 19 "$PY" "$ROOT/xtask/mitsuba/heavy.py" render --spp 1024 --seed 99999 --out "$OUT/heavy_ref" >/dev/null
+    fi
+    echo "mean radiance and RMSE against Mitsuba's 1024-spp reference (a: Lucent, b: Mitsuba):"
+    "$PY" "$HELP" pair "$OUT/heavy_lucent.exr" "$OUT/heavy_mitsuba.exr" "$OUT/heavy_ref.exr"
+    ;;
   *)
-    echo "usage: $0 errors|converge|bench|seeds|blocks ..." >&2
+    echo "usage: $0 errors|converge|bench|seeds|blocks|heavy ..." >&2
     exit 2
     ;;
 esac

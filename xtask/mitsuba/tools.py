@@ -5,6 +5,8 @@ Mitsuba to read and write EXR, and numpy).
   tools.py average OUT_STEM A.exr B.exr ...   mean of equal-spp renders -> OUT_STEM.exr/.png
   tools.py blocks REF.exr TEST.exr            bias check on 8x8-block means
   tools.py summarize bench.jsonl              medians of interleaved timings
+  tools.py pair A.exr B.exr [REF.exr]         mean radiance of two renders; with REF, each
+                                              one's RMSE against it (equal error at equal spp)
   tools.py noise REF.exr REF_SPP CHUNK.exr ...  error of the chunks' mean against what noise
                                               explains: each chunk (equal spp, independent
                                               seeds) gives every pixel's variance, hence the
@@ -112,6 +114,18 @@ def summarize(path):
     print("loads: " + "; ".join("%s %s" % (r["who"], r["load"]) for r in rows))
 
 
+def pair(a_path, b_path, ref_path=None):
+    a, b = load(a_path), load(b_path)
+    out = {"mean_a": [round(float(x), 5) for x in a.reshape(-1, 3).mean(0)],
+           "mean_b": [round(float(x), 5) for x in b.reshape(-1, 3).mean(0)],
+           "rmse_a_b": round(float(np.sqrt(np.mean((a - b) ** 2))), 5)}
+    if ref_path:
+        ref = load(ref_path)
+        out["rmse_a_ref"] = round(float(np.sqrt(np.mean((a - ref) ** 2))), 5)
+        out["rmse_b_ref"] = round(float(np.sqrt(np.mean((b - ref) ** 2))), 5)
+    print(json.dumps(out))
+
+
 if __name__ == "__main__":
     cmd = sys.argv[1]
     if cmd == "average":
@@ -122,5 +136,7 @@ if __name__ == "__main__":
         noise(sys.argv[2], int(sys.argv[3]), sys.argv[4:])
     elif cmd == "summarize":
         summarize(sys.argv[2])
+    elif cmd == "pair":
+        pair(*sys.argv[2:5])
     else:
         sys.exit(__doc__)

@@ -15,14 +15,16 @@
 //!   the closest hit's distance is recomputed in f64. Closest-hit, any-hit
 //!   and all-hits queries, plus a brute-force reference.
 //! - [`SceneBvh`]: two levels, one BVH over instances (affine transforms of
-//!   shared [`MeshBvh`]s, each mesh stored once).
+//!   shared [`MeshBvh`]s, each mesh stored once), collapsed to 8 wide and
+//!   walked like a mesh's tree.
 //!
 //! The vector code is plain safe Rust over `[f32; 4]` and `[f32; 8]` lanes
 //! that the compiler vectorises, except one module, `kernel` (x86-64 only):
 //! the eight-box test in AVX2 intrinsics, chosen at run time where the
-//! processor has AVX2 and FMA ([`MeshBvh::with_vector_kernel`]), and checked
-//! bit for bit against the portable test. It holds this crate's only
-//! `unsafe` code.
+//! processor has AVX2 and FMA, and the four-triangle watertight test in SSE
+//! (every x86-64 has it), both switched by [`MeshBvh::with_vector_kernel`]
+//! and checked bit for bit against the portable code. It holds this crate's
+//! only `unsafe` code.
 //!
 //! Invariants: no IO, no panics on data (empty, degenerate, NaN and infinite
 //! input is tolerated and simply never hit), no allocation per ray (traversal

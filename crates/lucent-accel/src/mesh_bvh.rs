@@ -2,7 +2,9 @@
 
 use crate::wide::{Tally, WideBvh, leaf_entry};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
-use lucent_geom::{PreparedRay, Ray, TrianglePack4, TriangleTest, lane_triangle, plane_distance};
+use lucent_geom::{
+    PackHits, PreparedRay, Ray, TriangleHit, TrianglePack4, TriangleTest, lane_triangle, plane_distance,
+};
 
 /// A ray hit on a mesh: distance, barycentrics and the triangle's index in
 /// the mesh's input order.
@@ -62,6 +64,56 @@ const EMPTY_PACK: Pack = Pack {
     prim: [u32::MAX; 4],
 };
 
+/// A ray prepared for the leaves' pack tests: the portable four-lane test,
+/// or (x86-64, watertight test, vector kernel on) the SSE one of
+/// `crate::kernel`, which gives the same answers bit for bit.
+#[derive(Clone, Copy, Debug)]
+enum LeafRay {
+    Portable(PreparedRay),
+    #[cfg(target_arch = "x86_64")]
+    Sse(crate::kernel::Ray4),
+}
+
+impl LeafRay {
+    #[inline(always)]
+    fn new(ray: &Ray, test: TriangleTest, simd: bool) -> Self {
+        let prepared = PreparedRay::new(ray, test);
+        #[cfg(target_arch = "x86_64")]
+        if simd {
+            return LeafRay::Sse(crate::kernel::Ray4::new(&prepared));
+        }
+        let _ = simd;
+        LeafRay::Portable(prepared)
+    }
+
+    #[inline(always)]
+    fn nearest(&self, pack: &TrianglePack4, t_max: f32) -> Option<(usize, TriangleHit)> {
+        match self {
+            LeafRay::Portable(r) => r.intersect4_lanes(pack, t_max).nearest(),
+            #[cfg(target_arch = "x86_64")]
+            LeafRay::Sse(r) => r.nearest(pack, t_max),
+        }
+    }
+
+    #[inline(always)]
+    fn any(&self, pack: &TrianglePack4, t_max: f32) -> bool {
+        match self {
+            LeafRay::Portable(r) => r.intersect4_lanes(pack, t_max).mask != 0,
+            #[cfg(target_arch = "x86_64")]
+            LeafRay::Sse(r) => r.any(pack, t_max),
+        }
+    }
+
+    #[inline(always)]
+    fn hits(&self, pack: &TrianglePack4, t_max: f32) -> PackHits {
+        match self {
+            LeafRay::Portable(r) => r.intersect4_lanes(pack, t_max),
+            #[cfg(target_arch = "x86_64")]
+            LeafRay::Sse(r) => r.hits(pack, t_max),
+        }
+    }
+}
+
 /// A BVH over one mesh's triangles, traversed as a 8-wide tree. Each leaf's
 /// triangles are copied into packs of four in structure-of-arrays form, so
 /// one vectorised test checks four triangles.
@@ -76,6 +128,11 @@ pub struct MeshBvh {
     stats: BvhStats,
     bounds: Aabb,
     test: TriangleTest,
+    /// Whether the vector kernels are on ([`MeshBvh::with_vector_kernel`]).
+    vector: bool,
+    /// Whether packs are tested with the SSE kernel (x86-64, watertight
+    /// test, vector kernels on).
+    simd_packs: bool,
 }
 
 impl MeshBvh {
@@ -114,18 +171,29 @@ impl MeshBvh {
             stats: bvh.stats(),
             bounds: bvh.bounds(),
             test: TriangleTest::default(),
+            vector: true,
+            simd_packs: false,
         }
+        .with_simd_packs()
+    }
+
+    /// Sets `simd_packs` from the test and the vector-kernel switch.
+    fn with_simd_packs(mut self) -> Self {
+        self.simd_packs = cfg!(target_arch = "x86_64") && self.test == TriangleTest::Watertight && self.vector;
+        self
     }
 
     /// The same tree using `test` for rays against triangles.
     pub fn with_triangle_test(mut self, test: TriangleTest) -> Self {
         self.test = test;
-        self
+        self.with_simd_packs()
     }
 
-    /// The same tree walked with the AVX2 box test where the processor has
-    /// it (`true`, the default) or with the portable one only (`false`).
-    /// Both find the same hits, bit for bit; only the speed differs.
+    /// The same tree walked with the vector kernels (`true`, the default:
+    /// the AVX2 box test where the processor has it, and on x86-64 the SSE
+    /// test of four watertight triangles) or with the portable code only
+    /// (`false`). Both find the same hits, bit for bit; only the speed
+    /// differs.
     ///
     /// ```
     /// use lucent_accel::{BuildParams, MeshBvh};
@@ -138,7 +206,8 @@ impl MeshBvh {
     /// ```
     pub fn with_vector_kernel(mut self, on: bool) -> Self {
         self.wide.set_simd(on);
-        self
+        self.vector = on;
+        self.with_simd_packs()
     }
 
     /// Whether queries run the AVX2 box test (x86-64 processors with AVX2
@@ -179,26 +248,17 @@ impl MeshBvh {
 
     /// Nearest hit among the pack's four triangles (the lowest lane among
     /// equals, as a lane-by-lane loop would find).
-    #[inline]
-    fn hit_pack(&self, ray: &PreparedRay, idx: usize, t_max: f32) -> Option<(usize, MeshHit)> {
+    #[inline(always)]
+    fn hit_pack(&self, ray: &LeafRay, idx: usize, t_max: f32) -> Option<(usize, MeshHit)> {
         let pack = self.packs.get(idx)?;
-        let mut best: Option<(usize, MeshHit)> = None;
-        for (lane, h) in ray.intersect4(&pack.v, t_max).into_iter().enumerate() {
-            if let Some(h) = h
-                && best.is_none_or(|(_, b)| h.t < b.t)
-            {
-                best = Some((
-                    lane,
-                    MeshHit {
-                        t: h.t,
-                        u: h.u,
-                        v: h.v,
-                        prim: pack.prim[lane],
-                    },
-                ));
-            }
-        }
-        best.map(|(lane, hit)| (idx * 4 + lane, hit))
+        let (lane, h) = ray.nearest(&pack.v, t_max)?;
+        let hit = MeshHit {
+            t: h.t,
+            u: h.u,
+            v: h.v,
+            prim: pack.prim[lane & 3],
+        };
+        Some((idx * 4 + lane, hit))
     }
 
     /// Closest hit with `0 < t < t_max`. The triangle tests pick the hit;
@@ -240,7 +300,7 @@ impl MeshBvh {
         let mut prepared = None;
         let mut best = None;
         let leaf = |first: usize, count: usize, t_bound: &mut f32| {
-            let prepared = prepared.get_or_insert_with(|| PreparedRay::new(ray, self.test));
+            let prepared = prepared.get_or_insert_with(|| LeafRay::new(ray, self.test, self.simd_packs));
             for idx in first..first + count {
                 if let Some(hit) = self.hit_pack(prepared, idx, *t_bound) {
                     *t_bound = hit.1.t;
@@ -276,12 +336,10 @@ impl MeshBvh {
     fn occluded_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> bool {
         let mut prepared = None;
         let found = |first: usize, count: usize, _: &mut f32| {
-            let prepared = prepared.get_or_insert_with(|| PreparedRay::new(ray, self.test));
-            self.packs.get(first..first + count).is_some_and(|packs| {
-                packs
-                    .iter()
-                    .any(|p| prepared.intersect4(&p.v, t_max).iter().any(Option::is_some))
-            })
+            let prepared = prepared.get_or_insert_with(|| LeafRay::new(ray, self.test, self.simd_packs));
+            self.packs
+                .get(first..first + count)
+                .is_some_and(|packs| packs.iter().any(|p| prepared.any(&p.v, t_max)))
         };
         self.wide.walk::<false, _, _>(ray, t_max, found, tally)
     }
@@ -289,11 +347,12 @@ impl MeshBvh {
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
     /// order, until it returns `true`. Returns whether it was stopped.
     pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(MeshHit) -> bool) -> bool {
-        let prepared = PreparedRay::new(ray, self.test);
+        let prepared = LeafRay::new(ray, self.test, self.simd_packs);
         let each = |first: usize, count: usize, _: &mut f32| {
             for pack in self.packs.get(first..first + count).unwrap_or_default() {
-                for (lane, h) in prepared.intersect4(&pack.v, t_max).into_iter().enumerate() {
-                    if let Some(h) = h {
+                let hits = prepared.hits(&pack.v, t_max);
+                for lane in 0..4 {
+                    if let Some(h) = hits.get(lane) {
                         let hit = MeshHit {
                             t: h.t,
                             u: h.u,

@@ -379,11 +379,25 @@ impl WideBvh {
             let mut entry = if mask != 0 {
                 let lane = pick_lane::<ORDERED>(&t_in, mask);
                 let mut rest = mask & !(1 << lane);
+                let base = sp;
                 while rest != 0 {
                     let l = rest.trailing_zeros() as usize;
                     if sp < N {
-                        stack_t[sp] = t_in[l];
-                        stack_e[sp] = node.child[l];
+                        // Closest hit: keep this node's stacked children
+                        // farthest first (insertion by entry distance), so
+                        // the nearer ones pop first and shrink `t_bound`
+                        // before the farther ones are reached.
+                        let (t, e) = (t_in[l], node.child[l]);
+                        let mut at = sp;
+                        if ORDERED {
+                            while at > base && stack_t[at - 1] < t {
+                                stack_t[at] = stack_t[at - 1];
+                                stack_e[at] = stack_e[at - 1];
+                                at -= 1;
+                            }
+                        }
+                        stack_t[at] = t;
+                        stack_e[at] = e;
                         sp += 1;
                     }
                     rest &= rest - 1;

@@ -57,34 +57,13 @@ pub fn texture_from_bytes(bytes: &[u8], path: &Path) -> Result<Texture, AssetErr
 /// [`MAX_TEXTURE_SIDE`] on a side, [`MAX_TEXELS`] in all and
 /// [`MAX_TEXELS_PER_BYTE`] per byte of `bytes`.
 pub fn texture_from_bytes_as(bytes: &[u8], path: &Path, space: ColorSpace) -> Result<Texture, AssetError> {
-    let format = image::guess_format(bytes)
-        .map_err(|_| AssetError::format(path, "not a PNG or JPEG image (unrecognised header)"))?;
-    if !matches!(format, ImageFormat::Png | ImageFormat::Jpeg) {
-        return Err(AssetError::format(
-            path,
-            format!("{format:?} images are not supported (use PNG or JPEG)"),
-        ));
-    }
-    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
-    // The header alone, with the decoder's default limits, so the checks
-    // below give the messages.
-    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
-        .into_dimensions()
-        .map_err(cannot)?;
-    check_size(bytes, path, width, height, "textures")?;
-    // zune-jpeg 0.5.15 (through image) panics on some malformed JPEGs (an
-    // IDCT slice out of range, found by fuzzing); a decoder's panic is this
-    // file's error, not the program's end.
-    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
-    let img = match decoded {
-        Ok(result) => result.map_err(cannot)?,
-        Err(_) => {
-            return Err(AssetError::format(
-                path,
-                format!("cannot decode image: the {format:?} decoder failed on malformed data"),
-            ));
-        }
-    };
+    let img = decode_checked(
+        bytes,
+        path,
+        &[ImageFormat::Png, ImageFormat::Jpeg],
+        "textures",
+        ("a PNG or JPEG image", "are not supported (use PNG or JPEG)"),
+    )?;
     let (width, height) = (img.width(), img.height());
     let has_alpha = img.color().has_alpha();
     let eight_bit = matches!(
@@ -164,34 +143,58 @@ pub fn load_environment_map(source: &dyn AssetSource, path: &Path) -> Result<(En
 /// # Ok::<(), lucent_assets::AssetError>(())
 /// ```
 pub fn environment_map_from_bytes(bytes: &[u8], path: &Path) -> Result<(EnvironmentMap, usize), AssetError> {
-    let format = image::guess_format(bytes)
-        .map_err(|_| AssetError::format(path, "not a Radiance HDR or OpenEXR image (unrecognised header)"))?;
-    if !matches!(format, ImageFormat::Hdr | ImageFormat::OpenExr) {
-        return Err(AssetError::format(
-            path,
-            format!("{format:?} images are not environment maps (use Radiance .hdr or OpenEXR)"),
-        ));
-    }
-    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
-    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
-        .into_dimensions()
-        .map_err(cannot)?;
-    check_size(bytes, path, width, height, "environment maps")?;
-    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
-    let img = match decoded {
-        Ok(result) => result.map_err(cannot)?,
-        Err(_) => {
-            return Err(AssetError::format(
-                path,
-                format!("cannot decode image: the {format:?} decoder failed on malformed data"),
-            ));
-        }
-    };
+    let img = decode_checked(
+        bytes,
+        path,
+        &[ImageFormat::Hdr, ImageFormat::OpenExr],
+        "environment maps",
+        (
+            "a Radiance HDR or OpenEXR image",
+            "are not environment maps (use Radiance .hdr or OpenEXR)",
+        ),
+    )?;
     let (width, height) = (img.width(), img.height());
     let mut texels: Vec<Vec3> = img.to_rgb32f().pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
     let bad = EnvironmentMap::sanitize(&mut texels);
     let map = EnvironmentMap::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))?;
     Ok((map, bad))
+}
+
+/// Decodes `bytes` as one of `formats`, after checking the header's size
+/// against the limits for `what` ("textures", "environment maps"). `names`
+/// is what the accepted formats are called and what is said of the others,
+/// for the errors, which name `path`.
+fn decode_checked(
+    bytes: &[u8],
+    path: &Path,
+    formats: &[ImageFormat],
+    what: &str,
+    names: (&str, &str),
+) -> Result<DynamicImage, AssetError> {
+    let (accepted, refused) = names;
+    let format = image::guess_format(bytes)
+        .map_err(|_| AssetError::format(path, format!("not {accepted} (unrecognised header)")))?;
+    if !formats.contains(&format) {
+        return Err(AssetError::format(path, format!("{format:?} images {refused}")));
+    }
+    let cannot = |e: image::ImageError| AssetError::format(path, format!("cannot decode image: {e}"));
+    // The header alone, with the decoder's default limits, so the checks
+    // below give the messages.
+    let (width, height) = ImageReader::with_format(Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(cannot)?;
+    check_size(bytes, path, width, height, what)?;
+    // zune-jpeg 0.5.15 (through image) panics on some malformed JPEGs (an
+    // IDCT slice out of range, found by fuzzing); a decoder's panic is this
+    // file's error, not the program's end.
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader(bytes, format).decode()));
+    match decoded {
+        Ok(result) => result.map_err(cannot),
+        Err(_) => Err(AssetError::format(
+            path,
+            format!("cannot decode image: the {format:?} decoder failed on malformed data"),
+        )),
+    }
 }
 
 /// Refuses an image whose header claims more texels than the limits, or

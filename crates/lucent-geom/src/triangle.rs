@@ -132,6 +132,20 @@ impl PreparedRay {
         self.test
     }
 
+    /// The watertight test's axis permutation `[kx, ky, kz]` (`kz` the
+    /// direction's largest component; each below 3), for vector kernels
+    /// that repeat [`PreparedRay::intersect_watertight`].
+    #[inline]
+    pub fn axes(&self) -> [usize; 3] {
+        self.k
+    }
+
+    /// The watertight test's shear constants `[sx, sy, sz]`.
+    #[inline]
+    pub fn shear(&self) -> [f32; 3] {
+        self.shear
+    }
+
     /// Hit with `0 < t < t_max`, both faces, by the prepared test.
     #[inline]
     pub fn intersect(&self, tri: [Vec3; 3], t_max: f32) -> Option<TriangleHit> {
@@ -220,71 +234,232 @@ impl PreparedRay {
         if self.test == TriangleTest::MollerTrumbore {
             return self.intersect4_moller_trumbore(pack, t_max);
         }
+        let hits = self.intersect4_watertight(pack, t_max);
+        [0, 1, 2, 3].map(|l| hits.get(l))
+    }
+
+    /// The four triangles of `pack` against this ray, as
+    /// [`PreparedRay::intersect4`] tests them, with the answer kept as four
+    /// lanes and a mask: the form traversal loops want (the nearest lane is
+    /// picked from the distances, barycentrics are divided out for it
+    /// alone).
+    ///
+    /// ```
+    /// use lucent_geom::{PreparedRay, Ray, TriangleTest, Vec3};
+    /// let nan = f32::NAN;
+    /// let pack = [
+    ///     [[0.0, nan, nan, nan], [0.0, nan, nan, nan], [0.0, nan, nan, nan]],
+    ///     [[1.0, nan, nan, nan], [0.0, nan, nan, nan], [0.0, nan, nan, nan]],
+    ///     [[0.0, nan, nan, nan], [1.0, nan, nan, nan], [0.0, nan, nan, nan]],
+    /// ];
+    /// let ray = PreparedRay::new(&Ray::new(Vec3::new(0.25, 0.25, 2.0), -Vec3::Z), TriangleTest::Watertight);
+    /// let hits = ray.intersect4_lanes(&pack, f32::INFINITY);
+    /// assert_eq!(hits.mask, 0b0001);
+    /// assert_eq!(hits.nearest().map(|(lane, h)| (lane, h.t)), Some((0, 2.0)));
+    /// ```
+    #[inline(always)]
+    pub fn intersect4_lanes(&self, pack: &TrianglePack4, t_max: f32) -> PackHits {
+        if self.test == TriangleTest::MollerTrumbore {
+            return PackHits::from_options(self.intersect4_moller_trumbore(pack, t_max));
+        }
+        self.intersect4_watertight(pack, t_max)
+    }
+
+    /// The watertight test on four lanes: whole-row arithmetic on `[f32; 4]`
+    /// (which the compiler turns into vector instructions), the same
+    /// operations in the same order as [`PreparedRay::intersect_watertight`],
+    /// so every lane's answer is bit for bit the scalar test's; the rare f64
+    /// fallback runs lane by lane.
+    #[inline(always)]
+    fn intersect4_watertight(&self, pack: &TrianglePack4, t_max: f32) -> PackHits {
         let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.shear;
         let o = self.ray.origin;
         let (ox, oy, oz) = (o[kx], o[ky], o[kz]);
-        // Sheared vertex coordinates per lane, as in intersect_watertight.
-        let mut x = [[0.0f32; 4]; 3];
-        let mut y = [[0.0f32; 4]; 3];
-        let mut z = [[0.0f32; 4]; 3];
-        for vtx in 0..3 {
-            let (px, py, pz) = (&pack[vtx][kx], &pack[vtx][ky], &pack[vtx][kz]);
+        // Sheared vertex coordinates, as in intersect_watertight.
+        let shear = |vtx: &[[f32; 4]; 3]| shear4(vtx, [kx, ky, kz], [ox, oy, oz], [sx, sy]);
+        let (ax, ay, az) = shear(&pack[0]);
+        let (bx, by, bz) = shear(&pack[1]);
+        let (cx, cy, cz) = shear(&pack[2]);
+        let mut u = sub4(mul4(cx, by), mul4(cy, bx));
+        let mut v = sub4(mul4(ax, cy), mul4(ay, cx));
+        let mut w = sub4(mul4(bx, ay), mul4(by, ax));
+        let zero = [0.0f32; 4];
+        let on_edge = or4(or4(eq4(u, zero), eq4(v, zero)), eq4(w, zero));
+        let on_edge = bits4(on_edge);
+        if on_edge != 0 {
+            let f = edge_f64;
             for l in 0..4 {
-                let (dx, dy, dz) = (px[l] - ox, py[l] - oy, pz[l] - oz);
-                x[vtx][l] = dx - sx * dz;
-                y[vtx][l] = dy - sy * dz;
-                z[vtx][l] = dz;
-            }
-        }
-        let [ax, bx, cx] = x;
-        let [ay, by, cy] = y;
-        let mut u = [0.0f32; 4];
-        let mut v = [0.0f32; 4];
-        let mut w = [0.0f32; 4];
-        let mut on_edge = false;
-        for l in 0..4 {
-            u[l] = cx[l] * by[l] - cy[l] * bx[l];
-            v[l] = ax[l] * cy[l] - ay[l] * cx[l];
-            w[l] = bx[l] * ay[l] - by[l] * ax[l];
-            on_edge |= (u[l] == 0.0) | (v[l] == 0.0) | (w[l] == 0.0);
-        }
-        if on_edge {
-            let f = |p: f32, q: f32, r: f32, s: f32| (f64::from(p) * f64::from(q) - f64::from(r) * f64::from(s)) as f32;
-            for l in 0..4 {
-                if u[l] == 0.0 || v[l] == 0.0 || w[l] == 0.0 {
+                if on_edge & (1 << l) != 0 {
                     u[l] = f(cx[l], by[l], cy[l], bx[l]);
                     v[l] = f(ax[l], cy[l], ay[l], cx[l]);
                     w[l] = f(bx[l], ay[l], by[l], ax[l]);
                 }
             }
         }
-        // All four lanes at once, with non-short-circuit `&`/`|` so that the
-        // decision vectorises too; then one branch per lane.
-        let mut ok = [false; 4];
-        let mut t = [0.0f32; 4];
-        let mut inv_det = [0.0f32; 4];
-        for l in 0..4 {
-            let (ul, vl, wl) = (u[l], v[l], w[l]);
-            let mixed = ((ul < 0.0) | (vl < 0.0) | (wl < 0.0)) & ((ul > 0.0) | (vl > 0.0) | (wl > 0.0));
-            let det = ul + vl + wl;
-            let t_scaled = ul * (sz * z[0][l]) + vl * (sz * z[1][l]) + wl * (sz * z[2][l]);
-            inv_det[l] = 1.0 / det;
-            t[l] = t_scaled * inv_det[l];
-            ok[l] = !mixed & (det != 0.0) & (t[l] > 0.0) & (t[l] < t_max) & (inv_det[l].abs() < f32::INFINITY);
-        }
-        let mut out = [None; 4];
-        for l in 0..4 {
-            if ok[l] {
-                out[l] = Some(TriangleHit {
-                    t: t[l],
-                    u: v[l] * inv_det[l],
-                    v: w[l] * inv_det[l],
-                });
+        let neg = or4(or4(lt4(u, zero), lt4(v, zero)), lt4(w, zero));
+        let pos = or4(or4(lt4(zero, u), lt4(zero, v)), lt4(zero, w));
+        let det = add4(add4(u, v), w);
+        let t_scaled = add4(
+            add4(mul4(u, mul4([sz; 4], az)), mul4(v, mul4([sz; 4], bz))),
+            mul4(w, mul4([sz; 4], cz)),
+        );
+        let inv_det = div4([1.0; 4], det);
+        let t = mul4(t_scaled, inv_det);
+        let inf = [f32::INFINITY; 4];
+        let ok = and4(
+            and4(not4(and4(neg, pos)), not4(eq4(det, zero))),
+            and4(and4(lt4(zero, t), lt4(t, [t_max; 4])), lt4(abs4(inv_det), inf)),
+        );
+        let mask = bits4(ok);
+        PackHits { mask, t, v, w, inv_det }
+    }
+}
+
+/// What [`PreparedRay::intersect4_lanes`] found in a pack of four
+/// triangles: bit `l` of `mask` is set when lane `l` is hit, and then
+/// [`PackHits::get`] gives that hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PackHits {
+    /// Lanes hit, one bit each (lane 0 is bit 0).
+    pub mask: u32,
+    /// Ray parameter per lane (meaningful where `mask` is set).
+    pub t: [f32; 4],
+    /// Scaled barycentric of the second vertex (times `inv_det`: `u`).
+    pub v: [f32; 4],
+    /// Scaled barycentric of the third vertex (times `inv_det`: `v`).
+    pub w: [f32; 4],
+    /// Reciprocal of the determinant.
+    pub inv_det: [f32; 4],
+}
+
+impl PackHits {
+    fn from_options(hits: [Option<TriangleHit>; 4]) -> PackHits {
+        let mut out = PackHits {
+            mask: 0,
+            t: [0.0; 4],
+            v: [0.0; 4],
+            w: [0.0; 4],
+            inv_det: [1.0; 4],
+        };
+        for (l, h) in hits.into_iter().enumerate() {
+            if let Some(h) = h {
+                out.mask |= 1 << l;
+                out.t[l] = h.t;
+                out.v[l] = h.u;
+                out.w[l] = h.v;
             }
         }
         out
     }
+
+    /// Lane `l`'s hit, `None` where it missed (or `l > 3`).
+    #[inline(always)]
+    pub fn get(&self, l: usize) -> Option<TriangleHit> {
+        (l < 4 && self.mask & (1 << l) != 0).then(|| TriangleHit {
+            t: self.t[l],
+            u: self.v[l] * self.inv_det[l],
+            v: self.w[l] * self.inv_det[l],
+        })
+    }
+
+    /// The nearest hit lane and its hit (the lowest lane among equals).
+    #[inline(always)]
+    pub fn nearest(&self) -> Option<(usize, TriangleHit)> {
+        let mut best: Option<usize> = None;
+        let mut m = self.mask & 0xf;
+        while m != 0 {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            if best.is_none_or(|b| self.t[l] < self.t[b]) {
+                best = Some(l);
+            }
+        }
+        best.and_then(|l| Some((l, self.get(l)?)))
+    }
+}
+
+/// `p q - r s` in f64, rounded once: the sign of an edge function that came
+/// out exactly zero in f32 (products of two f32 are exact in f64).
+#[inline]
+pub fn edge_f64(p: f32, q: f32, r: f32, s: f32) -> f32 {
+    (f64::from(p) * f64::from(q) - f64::from(r) * f64::from(s)) as f32
+}
+
+/// One vertex row of a pack moved to the ray's sheared frame.
+#[inline(always)]
+fn shear4(
+    vtx: &[[f32; 4]; 3],
+    [kx, ky, kz]: [usize; 3],
+    [ox, oy, oz]: [f32; 3],
+    [sx, sy]: [f32; 2],
+) -> ([f32; 4], [f32; 4], [f32; 4]) {
+    let dx = sub4(vtx[kx % 3], [ox; 4]);
+    let dy = sub4(vtx[ky % 3], [oy; 4]);
+    let dz = sub4(vtx[kz % 3], [oz; 4]);
+    (sub4(dx, mul4([sx; 4], dz)), sub4(dy, mul4([sy; 4], dz)), dz)
+}
+
+#[inline(always)]
+fn sub4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]]
+}
+#[inline(always)]
+fn add4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]
+}
+#[inline(always)]
+fn mul4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    [a[0] * b[0], a[1] * b[1], a[2] * b[2], a[3] * b[3]]
+}
+#[inline(always)]
+fn div4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    [a[0] / b[0], a[1] / b[1], a[2] / b[2], a[3] / b[3]]
+}
+#[inline(always)]
+fn abs4(a: [f32; 4]) -> [f32; 4] {
+    a.map(f32::abs)
+}
+/// A lane mask: all ones where true, zero where false.
+type Mask4 = [i32; 4];
+#[inline(always)]
+fn lane(b: bool) -> i32 {
+    -i32::from(b)
+}
+#[inline(always)]
+fn eq4(a: [f32; 4], b: [f32; 4]) -> Mask4 {
+    [
+        lane(a[0] == b[0]),
+        lane(a[1] == b[1]),
+        lane(a[2] == b[2]),
+        lane(a[3] == b[3]),
+    ]
+}
+#[inline(always)]
+fn lt4(a: [f32; 4], b: [f32; 4]) -> Mask4 {
+    [
+        lane(a[0] < b[0]),
+        lane(a[1] < b[1]),
+        lane(a[2] < b[2]),
+        lane(a[3] < b[3]),
+    ]
+}
+#[inline(always)]
+fn or4(a: Mask4, b: Mask4) -> Mask4 {
+    [a[0] | b[0], a[1] | b[1], a[2] | b[2], a[3] | b[3]]
+}
+#[inline(always)]
+fn and4(a: Mask4, b: Mask4) -> Mask4 {
+    [a[0] & b[0], a[1] & b[1], a[2] & b[2], a[3] & b[3]]
+}
+#[inline(always)]
+fn not4(a: Mask4) -> Mask4 {
+    [!a[0], !a[1], !a[2], !a[3]]
+}
+/// Bit `l` set where lane `l` of `a` is set.
+#[inline(always)]
+fn bits4(a: Mask4) -> u32 {
+    (a[0] as u32 >> 31) | (a[1] as u32 >> 31) << 1 | (a[2] as u32 >> 31) << 2 | (a[3] as u32 >> 31) << 3
 }
 
 impl PreparedRay {

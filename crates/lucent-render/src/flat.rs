@@ -111,6 +111,13 @@ impl FlatBvh {
         })
     }
 
+    /// The tree over the render-space triangles (its primitive indices are
+    /// flattened triangles, not the instances' own): for diagnostics such
+    /// as [`MeshBvh::intersect_counted`].
+    pub fn mesh_bvh(&self) -> &MeshBvh {
+        &self.bvh
+    }
+
     /// Memory of the tree and the owner table, in bytes.
     pub fn bytes(&self) -> usize {
         self.bvh.bytes() + self.owner.len() * size_of::<(u32, u32)>()

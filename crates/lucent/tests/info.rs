@@ -147,6 +147,11 @@ fn scene_info_counts_entities_and_features() {
         cornell["render_features"],
         serde_json::json!(["transmissive", "reflective", "emissive", "smooth_normals"])
     );
+    // Issue 14's heavy scene: at least 2 M triangles through instancing of
+    // four stored meshes.
+    let heavy = info(Path::new("res/scenes/heavy.toml")).unwrap_or_default();
+    assert!(heavy["instanced_triangles"].as_u64() >= Some(2_000_000), "{heavy}");
+    assert_eq!(heavy["entities"]["meshes"], 4, "{heavy}");
 }
 
 #[test]

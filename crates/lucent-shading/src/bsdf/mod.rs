@@ -201,20 +201,7 @@ impl Bsdf {
         let mean = |v: Vec3| v.element_sum() / 3.0;
         let w = [mean(diffuse), mean(glossy), mean(conductor), mean(dielectric)];
         let total: f32 = w.iter().sum();
-        let mut cdf = [0.0; 4];
-        if total > 0.0 && total.is_finite() {
-            let mut acc = 0.0;
-            for (c, wk) in cdf.iter_mut().zip(w) {
-                acc += wk / total;
-                *c = acc;
-            }
-            // The last lobe with weight ends exactly at 1, as do the empty
-            // ones after it, so rounding never leaves a gap below 1.
-            let last = w.iter().rposition(|&wk| wk > 0.0).unwrap_or(0);
-            for c in &mut cdf[last..] {
-                *c = 1.0;
-            }
-        }
+        let cdf = selection_cdf(w);
         // Parameters of absent lobes are zeroed, so equal mixtures compare
         // equal whatever the unused parameters were.
         let keep = |k: usize, v: f32, none: f32| if w[k] > 0.0 && total.is_finite() { v } else { none };
@@ -303,21 +290,7 @@ impl Bsdf {
     /// Replaces the lobe-selection probabilities by ones proportional to
     /// `w` (a lobe without weight must get zero).
     fn set_selection(&mut self, w: [f32; 4]) {
-        let w = w.map(|x| if x.is_finite() && x > 0.0 { x } else { 0.0 });
-        let total: f32 = w.iter().sum();
-        let mut cdf = [0.0; 4];
-        if total > 0.0 && total.is_finite() {
-            let mut acc = 0.0;
-            for (c, wk) in cdf.iter_mut().zip(w) {
-                acc += wk / total;
-                *c = acc;
-            }
-            let last = w.iter().rposition(|&wk| wk > 0.0).unwrap_or(0);
-            for c in &mut cdf[last..] {
-                *c = 1.0;
-            }
-        }
-        self.cdf = cdf;
+        self.cdf = selection_cdf(w.map(|x| if x.is_finite() && x > 0.0 { x } else { 0.0 }));
     }
 
     /// The conductor lobe's Fresnel term at `c = |wo.h|`.
@@ -536,4 +509,25 @@ impl Bsdf {
 #[inline]
 fn finite(s: BsdfSample) -> Option<BsdfSample> {
     (s.wi.is_finite() && s.weight.is_finite() && s.pdf.is_finite() && s.pdf > 0.0).then_some(s)
+}
+
+/// The cumulative lobe-selection probabilities of weights `w`: all zero
+/// unless the weights have a positive, finite sum. The last lobe with weight
+/// ends exactly at 1, as do the empty ones after it, so rounding never
+/// leaves a gap below 1.
+fn selection_cdf(w: [f32; 4]) -> [f32; 4] {
+    let total: f32 = w.iter().sum();
+    let mut cdf = [0.0; 4];
+    if total > 0.0 && total.is_finite() {
+        let mut acc = 0.0;
+        for (c, wk) in cdf.iter_mut().zip(w) {
+            acc += wk / total;
+            *c = acc;
+        }
+        let last = w.iter().rposition(|&wk| wk > 0.0).unwrap_or(0);
+        for c in &mut cdf[last..] {
+            *c = 1.0;
+        }
+    }
+    cdf
 }
