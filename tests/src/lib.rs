@@ -163,6 +163,20 @@ impl Comparator for ImageComparator {
     }
 }
 
+/// The `main` of this crate's command-line examples: runs `run` on the
+/// arguments, and prints its error as one `error:` line with a failing
+/// exit code.
+pub fn example_main(run: impl FnOnce(&[String]) -> Result<(), String>) -> std::process::ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match run(&args) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -57,11 +57,10 @@ fn an_obj_lamp_with_ke_is_an_area_light_seen_from_its_front_only() {
 // `clamp_indirect`), on scenes with known answers.
 
 mod bends {
-    use lucent_geom::{Affine3A, Pcg32, Ray, TriMesh, Vec3, shapes};
+    use lucent_geom::{Pcg32, Ray, Vec3};
     use lucent_render::path::PathTracer;
-    use lucent_render::{Film, Integrator, RayStats, RenderScene, RenderSettings, extract, render};
-    use lucent_scene::components::{Camera, Light, Material, OrbitRig};
-    use lucent_scene::{Environment, Scene};
+    use lucent_render::{Film, Integrator, RayStats, RenderSettings, extract, render};
+    use lucent_scene::fixtures;
 
     fn settings(max_depth: u32, spp: u32) -> RenderSettings {
         RenderSettings {
@@ -73,84 +72,6 @@ mod bends {
             seed: 3,
             ..RenderSettings::default()
         }
-    }
-
-    fn dark() -> Environment {
-        Environment {
-            background: Vec3::ZERO,
-            ambient: Vec3::ZERO,
-            shadowed_ambient: false,
-            ..Environment::default()
-        }
-    }
-
-    /// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
-    /// (albedo 0.5) at y = 2 that faces down, lit by a point light between.
-    fn mirror_under_ceiling() -> RenderScene {
-        let mut scene = Scene {
-            environment: dark(),
-            ..Scene::default()
-        };
-        let plane = scene.add_mesh("plane", shapes::plane());
-        let mirror = scene.add_material(
-            "mirror",
-            Material {
-                kd: Vec3::ZERO,
-                kr: Vec3::splat(0.8),
-                ..Material::default()
-            },
-        );
-        let grey = scene.add_material(
-            "grey",
-            Material {
-                kd: Vec3::splat(0.5),
-                ..Material::default()
-            },
-        );
-        let big = Affine3A::from_scale(Vec3::splat(100.0));
-        scene.add_instance("floor", plane, mirror, big);
-        let flip =
-            Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(std::f32::consts::PI);
-        scene.add_instance("ceiling", plane, grey, flip * big);
-        scene.add_light(
-            "bulb",
-            Light::Point {
-                position: Vec3::new(0.0, 1.0, 0.0),
-                intensity: Vec3::ONE,
-            },
-        );
-        scene.add_camera("cam", Camera::default(), OrbitRig::default());
-        extract(&scene).unwrap_or_else(|e| panic!("{e}"))
-    }
-
-    /// A closed box of diffuse `albedo` whose walls all emit `emission`,
-    /// seen from inside.
-    fn furnace(albedo: f32, emission: f32) -> Scene {
-        let mut scene = Scene {
-            environment: dark(),
-            ..Scene::default()
-        };
-        let cube = shapes::cuboid();
-        let faces = cube.indices().iter().map(|&[a, b, c]| [a, c, b]).collect();
-        let inward = TriMesh::new(cube.positions().to_vec(), faces).unwrap_or_else(|e| panic!("{e}"));
-        let mesh = scene.add_mesh("box", inward);
-        let mat = scene.add_material(
-            "wall",
-            Material {
-                kd: Vec3::splat(albedo),
-                emission: Vec3::splat(emission),
-                ..Material::default()
-            },
-        );
-        scene.add_instance("box", mesh, mat, Affine3A::from_scale(Vec3::splat(4.0)));
-        let rig = OrbitRig {
-            center: Vec3::ZERO,
-            radius: 1.0,
-            theta: 0.2,
-            phi: 1.0,
-        };
-        scene.add_camera("cam", Camera { fov_y_deg: 100.0 }, rig);
-        scene
     }
 
     fn mean(film: &Film) -> Vec3 {
@@ -166,7 +87,7 @@ mod bends {
         // depth-3 path, with the very same random numbers and radiance.
         let from = Vec3::new(0.0, 1.0, 1.0);
         let ray = Ray::new(from, (-from).normalize());
-        let rs = mirror_under_ceiling();
+        let rs = extract(&fixtures::mirror_under_ceiling()).unwrap_or_else(|e| panic!("{e}"));
         let trace = |s: &RenderSettings| {
             PathTracer::new(&rs, s).trace_primary(ray, &mut Pcg32::new(5, 0), &mut RayStats::default())
         };
@@ -189,7 +110,7 @@ mod bends {
 
     #[test]
     fn clamp_indirect_caps_only_light_that_bounced() {
-        let scene = furnace(1.0, 1.0);
+        let scene = fixtures::glowing_box(1.0, 1.0);
         let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
         let film = |depth: u32, clamp: f32| {
             let s = RenderSettings {

@@ -18,6 +18,17 @@ use crate::components::{Camera, Light, Material, OrbitRig};
 use crate::{Environment, Scene};
 use lucent_geom::{Affine3A, Quat, TriMesh, Vec3, shapes};
 
+/// An environment that adds no light: black background, no ambient term,
+/// so only the scene's own lights and emitters show.
+pub fn dark() -> Environment {
+    Environment {
+        background: Vec3::ZERO,
+        ambient: Vec3::ZERO,
+        shadowed_ambient: false,
+        ..Environment::default()
+    }
+}
+
 /// One white icosphere (2 subdivisions, radius 1) at the origin, lit by a
 /// white directional light from straight above, seen by the default camera
 /// and rig.
@@ -67,11 +78,7 @@ pub fn furnace_sphere(environment: Environment) -> Scene {
 /// tracer's white furnace, whose pixels converge to a geometric series.
 pub fn glowing_box(albedo: f32, emission: f32) -> Scene {
     let mut scene = Scene {
-        environment: Environment {
-            ambient: Vec3::ZERO,
-            shadowed_ambient: false,
-            ..Environment::default()
-        },
+        environment: dark(),
         ..Scene::default()
     };
     let cube = shapes::cuboid();
@@ -122,5 +129,31 @@ pub fn floor_and_ceiling(floor_material: Material, ceiling: Material, height: f3
         Vec3::new(0.0, height, 0.0),
     );
     scene.add_instance("ceiling", plane, mat, xf);
+    scene
+}
+
+/// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
+/// (albedo 0.5) at y = 2 that faces down, lit by a unit point light between
+/// them, in a [`dark`] environment: paths that must pass a mirror before
+/// they reach diffuse light.
+pub fn mirror_under_ceiling() -> Scene {
+    let mirror = Material {
+        kd: Vec3::ZERO,
+        kr: Vec3::splat(0.8),
+        ..Material::default()
+    };
+    let grey = Material {
+        kd: Vec3::splat(0.5),
+        ..Material::default()
+    };
+    let mut scene = floor_and_ceiling(mirror, grey, 2.0);
+    scene.environment = dark();
+    scene.add_light(
+        "bulb",
+        Light::Point {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            intensity: Vec3::ONE,
+        },
+    );
     scene
 }

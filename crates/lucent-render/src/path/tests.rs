@@ -20,15 +20,6 @@ fn settings(max_depth: u32, spp: u32) -> RenderSettings {
     }
 }
 
-fn dark() -> Environment {
-    Environment {
-        background: Vec3::ZERO,
-        ambient: Vec3::ZERO,
-        shadowed_ambient: false,
-        ..Environment::default()
-    }
-}
-
 fn mean_and_spread(film: &Film) -> (Vec3, f32) {
     let px = film.to_linear();
     let n = px.len() as f32;
@@ -92,7 +83,7 @@ fn a_white_object_under_a_uniform_sky_disappears() {
     // object sends every bounce straight back to the sky).
     let scene = fixtures::furnace_sphere(Environment {
         background: Vec3::ONE,
-        ..dark()
+        ..fixtures::dark()
     });
     // The sky is a light sampled beside the BSDF (MIS), so single paths
     // vary; their mean does not.
@@ -112,7 +103,7 @@ fn uniform_map_environment() -> Environment {
         map: Some(std::sync::Arc::new(map)),
         intensity: 2.0,
         rotation_deg: 20.0,
-        ..dark()
+        ..fixtures::dark()
     }
 }
 
@@ -142,7 +133,7 @@ fn a_diffuse_plane_under_a_half_sky_reflects_its_albedo() {
     scene.environment = Environment {
         map: Some(std::sync::Arc::new(map)),
         rotation_deg: 33.0,
-        ..dark()
+        ..fixtures::dark()
     };
     let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
     let from = Vec3::new(0.0, 1.0, 1.0);
@@ -171,7 +162,7 @@ fn an_all_black_map_renders_black_without_sampling_it() {
     scene.environment = Environment {
         map: Some(std::sync::Arc::new(map)),
         background: Vec3::ONE,
-        ..dark()
+        ..fixtures::dark()
     };
     let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
     assert!(rs.light_set.is_empty() && rs.light_set.environment().is_none());
@@ -185,7 +176,7 @@ fn lit_floor(light: Light, kd: f32) -> RenderScene {
         kd: Vec3::splat(kd),
         ..Material::default()
     });
-    scene.environment = dark();
+    scene.environment = fixtures::dark();
     scene.add_light("light", light);
     extract(&scene).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -238,28 +229,9 @@ fn one_and_two_threads_give_the_same_bytes() {
     assert_eq!(one.stats().n_non_finite, 0);
 }
 
-/// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
-/// (albedo 0.5) at y = 2 that faces down, lit by a point light between.
+/// [`fixtures::mirror_under_ceiling`], extracted.
 fn mirror_under_ceiling() -> RenderScene {
-    let mirror = Material {
-        kd: Vec3::ZERO,
-        kr: Vec3::splat(0.8),
-        ..Material::default()
-    };
-    let grey = Material {
-        kd: Vec3::splat(0.5),
-        ..Material::default()
-    };
-    let mut scene = fixtures::floor_and_ceiling(mirror, grey, 2.0);
-    scene.environment = dark();
-    scene.add_light(
-        "bulb",
-        Light::Point {
-            position: Vec3::new(0.0, 1.0, 0.0),
-            intensity: Vec3::ONE,
-        },
-    );
-    extract(&scene).unwrap_or_else(|e| panic!("{e}"))
+    extract(&fixtures::mirror_under_ceiling()).unwrap_or_else(|e| panic!("{e}"))
 }
 
 #[test]
