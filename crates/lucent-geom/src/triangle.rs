@@ -514,67 +514,26 @@ mod tests {
 
     const TRI: [Vec3; 3] = [Vec3::ZERO, Vec3::X, Vec3::Y];
 
-    fn check(origin: [f32; 3], dir: [f32; 3], t_max: f32) -> Option<(f32, f32, f32)> {
-        let ray = Ray::new(Vec3::from(origin), Vec3::from(dir));
-        intersect_triangle(&ray, TRI, t_max).map(|h| (h.t, h.u, h.v))
-    }
-
-    #[test]
-    fn hits_inside_with_barycentrics() {
-        assert_eq!(
-            check([0.25, 0.5, 2.0], [0.0, 0.0, -1.0], f32::INFINITY),
-            Some((2.0, 0.25, 0.5))
-        );
-        // Back face counts too.
-        assert_eq!(
-            check([0.25, 0.5, -2.0], [0.0, 0.0, 1.0], f32::INFINITY),
-            Some((2.0, 0.25, 0.5))
-        );
-    }
-
-    #[test]
-    fn misses_outside_behind_and_beyond_t_max() {
-        assert_eq!(check([0.8, 0.8, 1.0], [0.0, 0.0, -1.0], f32::INFINITY), None);
-        assert_eq!(check([0.2, 0.2, 1.0], [0.0, 0.0, 1.0], f32::INFINITY), None);
-        assert_eq!(check([0.2, 0.2, 1.0], [0.0, 0.0, -1.0], 1.0), None);
-        // Parallel to the plane.
-        assert_eq!(check([0.2, 0.2, 0.0], [1.0, 0.0, 0.0], f32::INFINITY), None);
-    }
-
-    #[test]
-    fn degenerate_and_non_finite_input_never_hits_or_panics() {
-        let ray = Ray::new(Vec3::new(0.1, 0.1, 1.0), -Vec3::Z);
-        let line = [Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0)];
-        assert!(intersect_triangle(&ray, line, f32::INFINITY).is_none());
-        let nan = [Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 1.0, 0.0)];
-        assert!(intersect_triangle(&ray, nan, f32::INFINITY).is_none());
-        let inf = [Vec3::ZERO, Vec3::X, Vec3::new(0.0, f32::INFINITY, 0.0)];
-        assert!(intersect_triangle(&ray, inf, f32::INFINITY).is_none());
-        let nan_ray = Ray::new(Vec3::splat(f32::NAN), -Vec3::Z);
-        assert!(intersect_triangle(&nan_ray, TRI, f32::INFINITY).is_none());
-    }
-
     fn both_tests(ray: &Ray, tri: [Vec3; 3], t_max: f32) -> [Option<TriangleHit>; 2] {
         [TriangleTest::Watertight, TriangleTest::MollerTrumbore].map(|t| PreparedRay::new(ray, t).intersect(tri, t_max))
     }
 
     #[test]
-    fn watertight_hits_inside_with_barycentrics_and_misses_outside() {
+    fn both_tests_hit_inside_with_barycentrics_and_miss_outside() {
+        let hit = Some(TriangleHit {
+            t: 2.0,
+            u: 0.25,
+            v: 0.5,
+        });
+        // The back face counts too.
         for (origin, dir) in [
             ([0.25, 0.5, 2.0], [0.0, 0.0, -1.0]),
             ([0.25, 0.5, -2.0], [0.0, 0.0, 1.0]),
         ] {
             let ray = Ray::new(Vec3::from(origin), Vec3::from(dir));
-            let hit = PreparedRay::new(&ray, TriangleTest::Watertight).intersect(TRI, f32::INFINITY);
-            assert_eq!(
-                hit,
-                Some(TriangleHit {
-                    t: 2.0,
-                    u: 0.25,
-                    v: 0.5
-                })
-            );
+            assert_eq!(both_tests(&ray, TRI, f32::INFINITY), [hit, hit], "{ray:?}");
         }
+        // Outside, behind, beyond t_max, parallel to the plane.
         let cases = [
             ([0.8, 0.8, 1.0], [0.0, 0.0, -1.0], f32::INFINITY),
             ([0.2, 0.2, 1.0], [0.0, 0.0, 1.0], f32::INFINITY),
@@ -588,7 +547,7 @@ mod tests {
     }
 
     #[test]
-    fn watertight_degenerate_and_non_finite_input_never_hits() {
+    fn degenerate_and_non_finite_input_never_hits() {
         let ray = Ray::new(Vec3::new(0.1, 0.1, 1.0), -Vec3::Z);
         for tri in [
             [Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0)],
