@@ -106,11 +106,10 @@ mod tests {
     fn snell_holds_and_normal_incidence_goes_straight() {
         let n = Vec3::Y;
         assert!(refract(-Vec3::Y, n, 1.0 / 1.5).is_some_and(|t| t.abs_diff_eq(-Vec3::Y, 1e-6)));
-        let theta_i = 40f32.to_radians();
-        let d = Vec3::new(theta_i.sin(), -theta_i.cos(), 0.0);
+        let d = incoming(40.0);
         let t = refract(d, n, 1.0 / 1.5).expect("entering glass never reflects totally");
         let sin_t = t.x;
-        assert!((theta_i.sin() - 1.5 * sin_t).abs() < 1e-6, "n1 sin1 = n2 sin2");
+        assert!((d.x - 1.5 * sin_t).abs() < 1e-6, "n1 sin1 = n2 sin2");
         assert!((t.length() - 1.0).abs() < 1e-6);
         // IOR 1: the ray goes on unchanged.
         assert!(refract(d, n, 1.0).is_some_and(|t| t.abs_diff_eq(d, 1e-6)));
@@ -118,14 +117,9 @@ mod tests {
 
     #[test]
     fn total_internal_reflection_past_the_critical_angle() {
-        let critical = (1.0f32 / 1.5).asin();
-        let n = Vec3::Y;
-        let at = |deg: f32| {
-            let a = critical + deg.to_radians();
-            Vec3::new(a.sin(), -a.cos(), 0.0)
-        };
-        assert!(refract(at(-1.0), n, 1.5).is_some());
-        assert!(refract(at(1.0), n, 1.5).is_none());
+        let critical = (1.0f32 / 1.5).asin().to_degrees();
+        assert!(refract(incoming(critical - 1.0), Vec3::Y, 1.5).is_some());
+        assert!(refract(incoming(critical + 1.0), Vec3::Y, 1.5).is_none());
     }
 
     /// Unit directions at `deg` from the normal +y, coming down onto it.

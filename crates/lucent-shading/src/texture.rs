@@ -3,7 +3,7 @@
 //! texture-coordinate transform (MTL `-s`/`-o`, glTF
 //! `KHR_texture_transform`).
 
-use lucent_geom::{Vec2, Vec3, Vec4};
+use lucent_geom::{Vec2, Vec3};
 use std::fmt;
 
 /// What happens to texture coordinates outside `[0, 1]`.
@@ -212,22 +212,6 @@ impl Texture {
         top.lerp(bottom, fy)
     }
 
-    /// Bilinear colour and alpha (1 without an alpha channel) at `uv`.
-    #[inline]
-    pub fn sample_rgba(&self, uv: Vec2) -> Vec4 {
-        let ([a, b, c, d], fx, fy) = self.footprint(uv);
-        let t = &self.texels;
-        let rgb = t[a].lerp(t[b], fx).lerp(t[c].lerp(t[d], fx), fy);
-        let alpha = match &self.alpha {
-            Some(al) => {
-                let lerp = |p: f32, q: f32, f: f32| p + (q - p) * f;
-                lerp(lerp(al[a], al[b], fx), lerp(al[c], al[d], fx), fy)
-            }
-            None => 1.0,
-        };
-        rgb.extend(alpha)
-    }
-
     /// Bilinear alpha at `uv` (1 without an alpha channel).
     #[inline]
     pub fn sample_alpha(&self, uv: Vec2) -> f32 {
@@ -343,8 +327,8 @@ mod tests {
         assert!(!t.has_alpha());
         let t = t.with_alpha(vec![0.0, 1.0, 0.0, 1.0]).expect("4 alphas");
         assert!((t.sample_alpha(Vec2::new(0.5, 0.5)) - 0.5).abs() < 1e-6);
-        let rgba = t.sample_rgba(Vec2::new(0.75, 0.25));
-        assert!(close(rgba.truncate(), Vec3::ONE) && (rgba.w - 1.0).abs() < 1e-6);
+        let at = Vec2::new(0.75, 0.25);
+        assert!(close(t.sample_bilinear(at), Vec3::ONE) && (t.sample_alpha(at) - 1.0).abs() < 1e-6);
         assert!(tiny(WrapMode::Clamp).with_alpha(vec![1.0; 3]).is_err());
     }
 
