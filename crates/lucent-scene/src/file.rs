@@ -310,14 +310,14 @@ pub struct MaterialDesc {
     /// metallic-roughness model, with `kd` as the base colour, `texture`
     /// as the base colour texture and `roughness` as its roughness, and
     /// the report's terms are derived from it for the Whitted integrator.
-    #[serde(default, deserialize_with = "unit_opt")]
+    #[serde(default, deserialize_with = "unit_interval")]
     pub metallic: Option<f32>,
     /// A glTF-style texture whose blue channel multiplies `metallic` and
     /// green channel `roughness` (linear).
     pub metallic_roughness_texture: Option<Spanned<TextureDesc>>,
     /// Share of a metallic-roughness material's dielectric that
     /// transmits, 0 to 1 (`KHR_materials_transmission`).
-    #[serde(default, deserialize_with = "unit_opt")]
+    #[serde(default, deserialize_with = "unit_interval")]
     pub transmission: Option<f32>,
     /// Tangent-space normal map (linear RGB, OpenGL convention: green
     /// along the bitangent), for any material.
@@ -583,10 +583,6 @@ fn subdivisions<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error
 }
 
 pub(crate) fn unit_interval<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
-    checked(d, |v: f32| (0.0..=1.0).contains(&v), "must be between 0 and 1").map(Some)
-}
-
-fn unit_opt<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
     checked(d, |v: f32| (0.0..=1.0).contains(&v), "must be between 0 and 1").map(Some)
 }
 
