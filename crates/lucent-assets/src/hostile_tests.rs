@@ -6,7 +6,7 @@
 //! ply-rs failures that `obj.rs` and `ply.rs` now guard against.
 
 use crate::{AssetError, MemorySource, load_mesh_from, load_scene_from};
-use lucent_geom::Pcg32;
+use lucent_geom::{Pcg32, Vec3};
 use std::path::Path;
 
 const OBJ: &[u8] = b"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0 0.5 0.5 0.5\nvt 0 0\nvt 1 1\nvn 0 0 1\n\
@@ -19,18 +19,13 @@ const SCENE: &[u8] = b"[render]\nwidth = 8\nheight = 8\n[camera]\nradius = 3\n[[
 to_light = [0, 1, 0]\n[materials.m]\nkd = [1, 0, 0]\n[[objects]]\nmesh = \"a.ply\"\nmaterial = \"m\"\nscale = 2\n\
 [[objects]]\nshape = \"sphere\"\nsubdivisions = 1\n";
 
+/// One triangle as binary little-endian PLY, as `encode_ply` writes it.
 fn binary_ply() -> Vec<u8> {
-    let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
-property float z\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n"
-        .to_vec();
-    for v in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
-        b.extend(v.to_le_bytes());
-    }
-    b.push(3);
-    for i in [0u32, 1, 2] {
-        b.extend(i.to_le_bytes());
-    }
-    b
+    let mesh = lucent_geom::TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]);
+    crate::encode_ply(
+        &mesh.unwrap_or_else(|e| panic!("{e}")),
+        crate::PlyFormat::BinaryLittleEndian,
+    )
 }
 
 /// Tokens that stress parsers: huge and negative counts and indices, NaN.

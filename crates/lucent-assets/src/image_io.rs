@@ -282,24 +282,16 @@ pub fn save_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), 
 }
 
 /// Encodes linear RGB floats (interleaved, row 0 at the top) as an
-/// OpenEXR image with 32-bit float channels.
+/// OpenEXR image with 32-bit float channels: [`encode_exr_layers`] without
+/// layers.
 pub fn encode_exr(width: u32, height: u32, rgb: &[f32]) -> Result<Vec<u8>, AssetError> {
-    let img = image::Rgb32FImage::from_raw(width, height, rgb.to_vec()).ok_or_else(|| {
-        AssetError::format(
-            "<exr>",
-            format!("{} floats do not make a {width}x{height} RGB image", rgb.len()),
-        )
-    })?;
-    let mut out = Vec::new();
-    img.write_to(&mut Cursor::new(&mut out), ImageFormat::OpenExr)
-        .map_err(|e| AssetError::format("<exr>", format!("cannot encode EXR: {e}")))?;
-    Ok(out)
+    encode_exr_layers(width, height, rgb, &[])
 }
 
 /// Writes linear RGB floats as an OpenEXR file (32-bit float channels,
 /// linear radiance, no transfer function).
 pub fn save_exr(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<(), AssetError> {
-    write_encoded(path, encode_exr(width, height, rgb))
+    save_exr_layers(path, width, height, rgb, &[])
 }
 
 /// One group of extra channels of a layered EXR ([`encode_exr_layers`]):
@@ -450,13 +442,18 @@ mod tests {
         assert_eq!(at(0.75, 0.25), Vec3::ONE);
     }
 
-    #[test]
-    fn jpeg_decodes_to_linear_too() {
+    /// An 8x8 baseline JPEG of mid grey (sRGB 128).
+    fn grey_jpeg() -> Vec<u8> {
         let grey = image::RgbImage::from_pixel(8, 8, image::Rgb([128, 128, 128]));
         let mut jpeg = Vec::new();
         let encoded = grey.write_to(&mut Cursor::new(&mut jpeg), ImageFormat::Jpeg);
         assert!(encoded.is_ok(), "{encoded:?}");
-        let tex = texture_from_bytes(&jpeg, Path::new("t.jpg")).map_err(|e| e.to_string());
+        jpeg
+    }
+
+    #[test]
+    fn jpeg_decodes_to_linear_too() {
+        let tex = texture_from_bytes(&grey_jpeg(), Path::new("t.jpg")).map_err(|e| e.to_string());
         let Ok(tex) = tex else {
             panic!("{tex:?}");
         };
@@ -581,13 +578,10 @@ mod tests {
         png
     }
 
-    /// An 8x8 baseline JPEG whose frame header is rewritten to claim
-    /// `width` x `height`.
+    /// [`grey_jpeg`] with its frame header rewritten to claim `width` x
+    /// `height`.
     fn jpeg_claiming(width: u16, height: u16) -> Vec<u8> {
-        let grey = image::RgbImage::from_pixel(8, 8, image::Rgb([128, 128, 128]));
-        let mut jpeg = Vec::new();
-        let encoded = grey.write_to(&mut Cursor::new(&mut jpeg), ImageFormat::Jpeg);
-        assert!(encoded.is_ok(), "{encoded:?}");
+        let mut jpeg = grey_jpeg();
         let sof = jpeg.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap_or(0);
         assert!(sof > 0, "no baseline frame header");
         // Marker (2), length (2), precision (1), then height and width.

@@ -69,6 +69,32 @@ fn msvc_non_finite(word: &[u8]) -> Option<f32> {
     rest.is_empty().then_some(value)
 }
 
+/// Non-finite spellings (MSVC's and the standard ones) that the loaders'
+/// tests put in a vertex, which is then rejected.
+#[cfg(test)]
+pub(crate) const NON_FINITE_WORDS: [&str; 16] = [
+    "1.#IND",
+    "-1.#IND",
+    "1.#QNAN",
+    "-1.#QNAN",
+    "1.#INF",
+    "-1.#INF",
+    "1.#INF00",
+    "-1.#IND00",
+    "1.#SNAN",
+    "1.#INF00e+000",
+    "nan",
+    "NaN",
+    "-inf",
+    "INF",
+    "Infinity",
+    "-INFINITY",
+];
+
+/// Words like those that are not numbers, so a loader's error.
+#[cfg(test)]
+pub(crate) const NOT_NUMBERS: [&str; 6] = ["3.1+e2", "1.2.3", "1.#INFX", "1.#", "1.#NAN", "1.#INF01"];
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -20,6 +20,11 @@ fn parse_err(text: &[u8]) -> Result<(), String> {
     load(&[("t.obj", text)], "t.obj").map(|_| ())
 }
 
+/// `text` as `t.obj`, which must load.
+fn load_obj(text: &[u8]) -> (Vec<MeshPart>, LoadReport) {
+    load(&[("t.obj", text)], "t.obj").unwrap_or_else(|e| panic!("{e}"))
+}
+
 #[test]
 fn loads_polygons_uvs_and_mtl() {
     let (parts, report) = load(&[("m/q.obj", QUAD_OBJ), ("m/q.mtl", QUAD_MTL)], "m/q.obj").unwrap_or_default();
@@ -112,14 +117,7 @@ fn tr_is_the_complement_of_d() {
 
 #[test]
 fn indices_are_made_absolute_and_checked() {
-    let (parts, _) = load(
-        &[(
-            "t.obj",
-            b"v 0 0 0\nv 1 0 0 # comment\nv 0 1 0\nvt 0 0\nf -3/1 -2/-1 -1/1 # tri\ng a#1\n",
-        )],
-        "t.obj",
-    )
-    .unwrap_or_default();
+    let (parts, _) = load_obj(b"v 0 0 0\nv 1 0 0 # comment\nv 0 1 0\nvt 0 0\nf -3/1 -2/-1 -1/1 # tri\ng a#1\n");
     assert_eq!(parts[0].mesh.indices(), &[[0, 1, 2]]);
     assert_eq!(
         parse_err(b"v 0 0 0\nf 1//1 1 1\n"),
@@ -147,7 +145,7 @@ fn indices_are_made_absolute_and_checked() {
     );
     // Positive indices may refer forward.
     assert!(parse_err(b"f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").is_ok());
-    let (_, report) = load(&[("t.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n")], "t.obj").unwrap_or_default();
+    let (_, report) = load_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n");
     assert_eq!(report.warnings, ["t.obj: 1 vertices are not used by any face"]);
 }
 
@@ -174,26 +172,9 @@ fn non_numeric_fields_name_the_line() {
 #[test]
 fn msvc_and_other_non_finite_spellings_reject_the_vertex() {
     // Two triangles over four vertices; the third vertex is not finite.
-    for word in [
-        "1.#IND",
-        "-1.#IND",
-        "1.#QNAN",
-        "-1.#QNAN",
-        "1.#INF",
-        "-1.#INF",
-        "1.#INF00",
-        "-1.#IND00",
-        "1.#SNAN",
-        "1.#INF00e+000",
-        "nan",
-        "NaN",
-        "-inf",
-        "INF",
-        "Infinity",
-        "-INFINITY",
-    ] {
+    for word in crate::number::NON_FINITE_WORDS {
         let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\nf 1 2 4\n");
-        let (parts, report) = load(&[("t.obj", &text.into_bytes())], "t.obj").unwrap_or_default();
+        let (parts, report) = load_obj(text.as_bytes());
         let m = parts.first().map(|p| &p.mesh);
         assert_eq!(
             m.map(|m| (m.positions().len(), m.n_triangles())),
@@ -214,7 +195,7 @@ fn msvc_and_other_non_finite_spellings_reject_the_vertex() {
         );
     }
     // (A word that starts with `#`, such as `#IND`, starts a comment.)
-    for word in ["3.1+e2", "1.2.3", "1.#INFX", "1.#", "1.#NAN", "1.#INF01"] {
+    for word in crate::number::NOT_NUMBERS {
         let text = format!("v 0 0 0\nv 1 0 0\nv 1 {word} 0\nf 1 2 3\n");
         assert_eq!(
             parse_err(&text.into_bytes()),
@@ -226,14 +207,7 @@ fn msvc_and_other_non_finite_spellings_reject_the_vertex() {
 
 #[test]
 fn vertex_colours_and_attributes_only_when_given() {
-    let (parts, _) = load(
-        &[(
-            "t.obj",
-            b"v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nv 1 1 0\nf 1 2 3\nf 2 4 3\n",
-        )],
-        "t.obj",
-    )
-    .unwrap_or_default();
+    let (parts, _) = load_obj(b"v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nv 1 1 0\nf 1 2 3\nf 2 4 3\n");
     let m = &parts[0].mesh;
     assert_eq!(
         m.colors().map(<[Vec3]>::to_vec),
@@ -277,7 +251,7 @@ fn smoothing_groups_decide_shared_normals() {
 #[test]
 fn groups_and_materials_split_parts_and_missing_ones_are_magenta() {
     let obj: &'static [u8] = b"mtllib none.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\ng a\nusemtl red\nf 1 2 3\ng b\nf 1 2 3\nusemtl blue\nf 3 2 1\nf 1 2\n";
-    let (parts, report) = load(&[("t.obj", obj)], "t.obj").unwrap_or_default();
+    let (parts, report) = load_obj(obj);
     let names: Vec<(&str, Option<&str>)> = parts
         .iter()
         .map(|p| (p.name.as_str(), p.material_name.as_deref()))
@@ -294,7 +268,7 @@ fn groups_and_materials_split_parts_and_missing_ones_are_magenta() {
         report.warnings[1],
         "t.obj: 1 faces have fewer than 3 vertices and give no triangles"
     );
-    let (_, report) = load(&[("t.obj", b"v 0 0 0\nusemtl x\nf 1 1 1\n")], "t.obj").unwrap_or_default();
+    let (_, report) = load_obj(b"v 0 0 0\nusemtl x\nf 1 1 1\n");
     assert!(
         report.warnings[0].contains("names no MTL file"),
         "{:?}",

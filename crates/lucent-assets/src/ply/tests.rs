@@ -100,9 +100,9 @@ fn errors_name_file_and_line() {
     );
 }
 
-/// A binary little-endian triangle: three float vertices, one face whose
-/// list uses `count_ty`/`index_ty`, written by `put`.
-fn binary_triangle(count: &[u8], indices: &[&[u8]], list_decl: &str) -> Vec<u8> {
+/// A binary little-endian triangle: three float vertices, one face of
+/// `count` and `indices` (bytes) as the list declaration `list_decl` says.
+fn binary_triangle(count: &[u8], indices: &[u8], list_decl: &str) -> Vec<u8> {
     let mut b = format!(
         "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
 property float z\nelement face 1\nproperty {list_decl} vertex_indices\nend_header\n"
@@ -112,27 +112,17 @@ property float z\nelement face 1\nproperty {list_decl} vertex_indices\nend_heade
         b.extend(v.to_le_bytes());
     }
     b.extend(count);
-    for i in indices {
-        b.extend(*i);
-    }
+    b.extend(indices);
     b
 }
 
 #[test]
 fn binary_errors_give_byte_offsets() {
-    let ok = binary_triangle(
-        &[3],
-        &[&0u32.to_le_bytes(), &1u32.to_le_bytes(), &2u32.to_le_bytes()],
-        "list uchar uint",
-    );
+    let ok = binary_triangle(&[3], &[0u32, 1, 2].map(u32::to_le_bytes).concat(), "list uchar uint");
     let header = ok.len() - 36 - 13;
     assert!(load(ok.clone()).is_ok());
     // Index 7 at the face's third entry.
-    let bad = binary_triangle(
-        &[3],
-        &[&0u32.to_le_bytes(), &1u32.to_le_bytes(), &7u32.to_le_bytes()],
-        "list uchar uint",
-    );
+    let bad = binary_triangle(&[3], &[0u32, 1, 7].map(u32::to_le_bytes).concat(), "list uchar uint");
     assert_eq!(
         load(bad).map(|_| ()),
         Err(format!(
@@ -167,42 +157,21 @@ fn any_integer_list_types_and_aliases() {
         (
             "list uint8 int32",
             vec![3u8],
-            vec![
-                0i32.to_le_bytes().to_vec(),
-                1i32.to_le_bytes().to_vec(),
-                2i32.to_le_bytes().to_vec(),
-            ],
+            [0i32, 1, 2].map(i32::to_le_bytes).concat(),
         ),
         (
             "list ushort short",
             3u16.to_le_bytes().to_vec(),
-            vec![
-                0i16.to_le_bytes().to_vec(),
-                1i16.to_le_bytes().to_vec(),
-                2i16.to_le_bytes().to_vec(),
-            ],
+            [0i16, 1, 2].map(i16::to_le_bytes).concat(),
         ),
-        (
-            "list int uchar",
-            3i32.to_le_bytes().to_vec(),
-            vec![vec![0], vec![1], vec![2]],
-        ),
-        (
-            "list char uint16",
-            vec![3],
-            vec![
-                0u16.to_le_bytes().to_vec(),
-                1u16.to_le_bytes().to_vec(),
-                2u16.to_le_bytes().to_vec(),
-            ],
-        ),
+        ("list int uchar", 3i32.to_le_bytes().to_vec(), vec![0, 1, 2]),
+        ("list char uint16", vec![3], [0u16, 1, 2].map(u16::to_le_bytes).concat()),
     ] {
-        let refs: Vec<&[u8]> = idx.iter().map(Vec::as_slice).collect();
-        let b = binary_triangle(&count, &refs, decl);
+        let b = binary_triangle(&count, &idx, decl);
         let (parts, _) = load(b).unwrap_or_default();
         assert_eq!(parts.first().map(|p| p.mesh.indices()), Some(&expect[..]), "{decl}");
     }
-    let float_list = binary_triangle(&[3], &[&[0; 12]], "list uchar float");
+    let float_list = binary_triangle(&[3], &[0; 12], "list uchar float");
     assert_eq!(
         load(float_list).map(|_| ()),
         Err("t.ply:8: face list 'vertex_indices' must have integer count and index types".into())
