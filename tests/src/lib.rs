@@ -31,12 +31,23 @@ pub fn load_repo_scene(relative: &str) -> Scene {
     }
 }
 
+/// Whether the extremes suites' slow sizes are on (`cargo xtask extremes`
+/// sets `LUCENT_EXTREMES_FULL`).
+pub fn extremes_full() -> bool {
+    std::env::var_os("LUCENT_EXTREMES_FULL").is_some()
+}
+
 /// Renders `scene` with its own settings changed by `tweak`.
 pub fn render_scene(scene: &Scene, tweak: impl FnOnce(&mut RenderSettings)) -> Film {
     let mut settings = scene.settings;
     tweak(&mut settings);
+    render_with(scene, &settings)
+}
+
+/// Renders `scene` with `settings`.
+pub fn render_with(scene: &Scene, settings: &RenderSettings) -> Film {
     let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
-    render(&rs, &settings, &|_| {}).film
+    render(&rs, settings, &|_| {}).film
 }
 
 /// Places the whole scene by a uniform `scale` followed by `translate`:
@@ -75,25 +86,24 @@ pub fn place_scene(scene: &mut Scene, scale: f32, translate: Vec3) {
     }
 }
 
-/// Encodes a film as an 8-bit sRGB PNG.
-pub fn film_png(film: &Film) -> Vec<u8> {
-    film_png_tonemapped(film, lucent_render::Tonemap::Clamp)
-}
-
-/// [`film_png`] through the tone curve `tonemap`.
-pub fn film_png_tonemapped(film: &Film, tonemap: lucent_render::Tonemap) -> Vec<u8> {
+/// Encodes a film as an 8-bit sRGB PNG through the tone curve `tonemap`.
+pub fn film_png(film: &Film, tonemap: lucent_render::Tonemap) -> Vec<u8> {
     lucent_assets::encode_png(film.width(), film.height(), &film.to_srgb8_tonemapped(0.0, tonemap))
         .unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// Asserts a binary PNG snapshot `NAME.png` of `film`, compared with
-/// [`ImageComparator`], and an exact text snapshot `NAME_stats` of its
-/// statistics (insta drops the extension from a binary snapshot's metadata
-/// file, so the two need different names).
+/// Asserts a binary PNG snapshot `NAME.png` of `film` (through the tone
+/// curve `TONEMAP`, clamp when not given), compared with [`ImageComparator`],
+/// and an exact text snapshot `NAME_stats` of its statistics (insta drops
+/// the extension from a binary snapshot's metadata file, so the two need
+/// different names).
 /// Fails on any NaN or infinite pixel first.
 #[macro_export]
 macro_rules! assert_image_snapshot {
-    ($name:expr, $film:expr) => {{
+    ($name:expr, $film:expr) => {
+        $crate::assert_image_snapshot!($name, $film, lucent_render::Tonemap::Clamp)
+    };
+    ($name:expr, $film:expr, $tonemap:expr) => {{
         let film: &lucent_render::Film = $film;
         let stats = film.stats();
         assert_eq!(stats.n_non_finite, 0, "{} has NaN or infinite pixels", $name);
@@ -101,7 +111,7 @@ macro_rules! assert_image_snapshot {
         let mut settings = insta::Settings::clone_current();
         settings.set_comparator(Box::new($crate::ImageComparator::default()));
         settings.bind(|| {
-            insta::assert_binary_snapshot!(&format!("{}.png", $name), $crate::film_png(film));
+            insta::assert_binary_snapshot!(&format!("{}.png", $name), $crate::film_png(film, $tonemap));
         });
     }};
 }
@@ -213,7 +223,9 @@ mod tests {
     #[test]
     fn film_png_round_trips() {
         let film = Film::from_pixels(2, 1, vec![Vec3::ONE, Vec3::ZERO]).unwrap();
-        let decoded = image::load_from_memory(&film_png(&film)).unwrap().to_rgb8();
+        let decoded = image::load_from_memory(&film_png(&film, lucent_render::Tonemap::Clamp))
+            .unwrap()
+            .to_rgb8();
         assert_eq!(decoded.into_raw(), vec![255, 255, 255, 0, 0, 0]);
     }
 }

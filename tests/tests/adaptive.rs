@@ -9,27 +9,61 @@
 //! `E|A - B|^2 = 2 v`); that is subtracted from the squared error. The
 //! truth so measured does not depend on the estimator under test.
 
-use lucent_assets::load_scene;
 use lucent_geom::Vec3;
 use lucent_render::{RenderScene, RenderSettings, extract, metrics, render, render_to_error};
-use std::path::Path;
+use lucent_tests::load_repo_scene;
 
 /// How far the estimate may be from the truth: the truth must be at most
 /// `FACTOR` times the estimate (the render must not claim to be better
 /// than it is by more than that) and at least the estimate over `FACTOR`.
 const FACTOR: f64 = 2.0;
 
-fn cornell(width: u32, height: u32) -> (RenderScene, RenderSettings) {
-    scene("cornell-mitsuba.toml", width, height)
-}
-
 fn scene(file: &str, width: u32, height: u32) -> (RenderScene, RenderSettings) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../res/scenes").join(file);
-    let (scene, _) = load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+    let scene = load_repo_scene(&format!("res/scenes/{file}"));
     let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
     let mut settings = scene.settings;
     (settings.width, settings.height) = (width, height);
     (rs, settings)
+}
+
+/// Two references of `spp` samples per pixel from independent seeds, and
+/// the relative RMSE of their mean's noise.
+fn references(rs: &RenderScene, settings: &RenderSettings, spp: u32) -> (Vec<Vec3>, Vec<Vec3>, f64) {
+    let reference = |seed| {
+        let s = RenderSettings { spp, seed, ..*settings };
+        render(rs, &s, &|_| {}).film.to_linear()
+    };
+    let (a, b) = (reference(1000), reference(1001));
+    let noise = metrics::relative_rmse(&a, &b).unwrap_or_default() / 2.0;
+    (a, b, noise)
+}
+
+/// Renders to `target` and checks the estimate against the truth the
+/// references `(a, b, noise)` give: within [`FACTOR`] both ways, and the
+/// references' noise below the truth. Returns truth / estimate.
+fn check_estimate(
+    label: &str,
+    rs: &RenderScene,
+    settings: &RenderSettings,
+    target: f64,
+    (a, b, noise_ref): &(Vec<Vec3>, Vec<Vec3>, f64),
+) -> f64 {
+    let out = render_to_error(rs, settings, target, 4096);
+    assert!(out.reached_target, "{label}: {}", out.estimated_error);
+    let truth = true_relative_rmse(&out.film.to_linear(), a, b);
+    let ratio = truth / out.estimated_error;
+    eprintln!(
+        "{label}: estimate {:.4}, true {truth:.4} (ratio {ratio:.2}), reference noise {noise_ref:.4}, mean {:.0} spp",
+        out.estimated_error,
+        out.mean_spp()
+    );
+    assert!(*noise_ref < truth, "the reference is too noisy to judge");
+    assert!(
+        (1.0 / FACTOR..=FACTOR).contains(&ratio),
+        "{label}: estimated {}, true {truth}",
+        out.estimated_error
+    );
+    ratio
 }
 
 /// The true relative RMSE of `image`: against the mean of two independent
@@ -56,37 +90,14 @@ fn true_relative_rmse(image: &[Vec3], a: &[Vec3], b: &[Vec3]) -> f64 {
 /// to be smaller than the error it corrects.
 #[test]
 fn the_estimated_error_is_within_a_factor_of_two_of_the_true_error() {
-    let (rs, mut settings) = cornell(24, 24);
-    let reference = |seed| {
-        let s = RenderSettings {
-            spp: 1024,
-            seed,
-            ..settings
-        };
-        render(&rs, &s, &|_| {}).film.to_linear()
-    };
-    let (a, b) = (reference(1000), reference(1001));
-    let noise_ref = metrics::relative_rmse(&a, &b).unwrap_or_default() / 2.0;
+    let (rs, mut settings) = scene("cornell-mitsuba.toml", 24, 24);
+    let refs = references(&rs, &settings, 1024);
     let mut log_ratios = Vec::new();
     for target in [0.25, 0.15] {
         for seed in [0, 1] {
             settings.seed = seed;
-            let out = render_to_error(&rs, &settings, target, 4096);
-            assert!(out.reached_target, "{target}: {}", out.estimated_error);
-            let truth = true_relative_rmse(&out.film.to_linear(), &a, &b);
-            let ratio = truth / out.estimated_error;
-            eprintln!(
-                "target {target} seed {seed}: estimate {:.4}, true {truth:.4} (ratio {ratio:.2}), reference noise {noise_ref:.4}, mean {:.0} spp",
-                out.estimated_error,
-                out.mean_spp()
-            );
-            assert!(noise_ref < truth, "the reference is too noisy to judge");
+            let ratio = check_estimate(&format!("target {target} seed {seed}"), &rs, &settings, target, &refs);
             log_ratios.push(ratio.ln());
-            assert!(
-                (1.0 / FACTOR..=FACTOR).contains(&ratio),
-                "target {target}, seed {seed}: estimated {}, true {truth}",
-                out.estimated_error
-            );
         }
     }
     let mean_ratio = (log_ratios.iter().sum::<f64>() / log_ratios.len() as f64).exp();
@@ -103,32 +114,9 @@ fn the_estimated_error_is_within_a_factor_of_two_of_the_true_error() {
 #[test]
 fn the_whitted_estimate_is_of_the_anti_aliasing_error() {
     let (rs, mut settings) = scene("seed.toml", 48, 27);
-    let reference = |seed| {
-        let s = RenderSettings {
-            spp: 256,
-            seed,
-            ..settings
-        };
-        render(&rs, &s, &|_| {}).film.to_linear()
-    };
-    let (a, b) = (reference(1000), reference(1001));
-    let noise_ref = metrics::relative_rmse(&a, &b).unwrap_or_default() / 2.0;
+    let refs = references(&rs, &settings, 256);
+    settings.seed = 0;
     for target in [0.05, 0.03] {
-        settings.seed = 0;
-        let out = render_to_error(&rs, &settings, target, 4096);
-        assert!(out.reached_target, "{target}: {}", out.estimated_error);
-        let truth = true_relative_rmse(&out.film.to_linear(), &a, &b);
-        let ratio = truth / out.estimated_error;
-        eprintln!(
-            "whitted, target {target}: estimate {:.4}, true {truth:.4} (ratio {ratio:.2}), reference noise {noise_ref:.4}, mean {:.0} spp",
-            out.estimated_error,
-            out.mean_spp()
-        );
-        assert!(noise_ref < truth, "the reference is too noisy to judge");
-        assert!(
-            (1.0 / FACTOR..=FACTOR).contains(&ratio),
-            "target {target}: estimated {}, true {truth}",
-            out.estimated_error
-        );
+        check_estimate(&format!("whitted, target {target}"), &rs, &settings, target, &refs);
     }
 }

@@ -10,13 +10,8 @@
 use lucent_geom::{Affine3A, Named, Vec3, shapes};
 use lucent_render::{Film, RenderSettings, Shading, extract, render};
 use lucent_scene::Scene;
-use lucent_scene::components::{Camera, Light, Material, OrbitRig};
-use lucent_tests::{load_repo_scene, place_scene as place};
-
-/// Whether the slow sizes are on (`cargo xtask extremes`).
-fn full() -> bool {
-    std::env::var_os("LUCENT_EXTREMES_FULL").is_some()
-}
+use lucent_scene::components::{Camera, Light, Material, Name, OrbitRig};
+use lucent_tests::{extremes_full, load_repo_scene, place_scene as place, render_with};
 
 /// How far apart two images of one size are.
 #[derive(Clone, Copy, Debug)]
@@ -40,11 +35,6 @@ fn image_error(a: &Film, b: &Film) -> ImageError {
         mean_levels: sum as f64 / a.len().max(1) as f64,
         fraction_off: n_off as f64 / (a.len() / 3).max(1) as f64,
     }
-}
-
-fn render_film(scene: &Scene, settings: &RenderSettings) -> Film {
-    let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
-    render(&rs, settings, &|_| {}).film
 }
 
 /// A closed mesh (an icosphere) resting on a floor board, lit from the side
@@ -125,7 +115,7 @@ struct ScaleRow {
 /// Renders `make()` at scales 1e-6 to 1e6, each at the origin and 1e3 and
 /// 1e6 of its own sizes away from it, and compares with unit scale.
 fn scale_case(name: &str, make: impl Fn() -> Scene, settings: RenderSettings) -> Vec<ScaleRow> {
-    let reference = render_film(&make(), &settings);
+    let reference = render_with(&make(), &settings);
     assert_eq!(reference.stats().n_non_finite, 0);
     let mut rows = Vec::new();
     for scale in [1e-6f32, 1e-3, 1.0, 1e3, 1e6] {
@@ -133,11 +123,11 @@ fn scale_case(name: &str, make: impl Fn() -> Scene, settings: RenderSettings) ->
             let translate = Vec3::new(1.0, -1.0, 1.0) * offset * scale;
             let mut scene = make();
             place(&mut scene, scale, translate);
-            let film = render_film(&scene, &settings);
+            let film = render_with(&scene, &settings);
             // Moving back by exactly -translate keeps the rounding the
             // coordinates got (the subtraction of nearby floats is exact).
             place(&mut scene, 1.0, -translate);
-            let rounded = render_film(&scene, &settings);
+            let rounded = render_with(&scene, &settings);
             let row = ScaleRow {
                 scale,
                 offset,
@@ -248,7 +238,7 @@ fn accumulation_drift(n: u32) -> (f64, f64) {
 
 #[test]
 fn long_accumulation_does_not_drift() {
-    let n = if full() { 1_000_000 } else { 100_000 };
+    let n = if extremes_full() { 1_000_000 } else { 100_000 };
     let (drift, drift_f32) = accumulation_drift(n);
     eprintln!(
         "accumulation: {n} samples per pixel, largest relative drift {drift:.3e} (the same samples summed in f32: {drift_f32:.3e})"
@@ -412,26 +402,21 @@ fn no_shadow_acne_or_self_hits_at_any_scale_or_angle() {
 /// index `ior`, or with no sphere.
 fn clear_sphere(ior: Option<f32>) -> Scene {
     let mut scene = sphere_on_floor();
-    scene.remove_instances("ball");
-    if let Some(ior) = ior {
-        let mesh = scene.add_mesh("clear ball", shapes::icosphere(4));
-        let clear = scene.add_material(
-            "clear",
-            Material {
+    let Some(ior) = ior else {
+        scene.remove_instances("ball");
+        return scene;
+    };
+    for (name, m) in scene.world.query_mut::<(&Name, &mut Material)>() {
+        if name.0 == "white" {
+            *m = Material {
                 ka: Vec3::ZERO,
                 kd: Vec3::ZERO,
                 ks: Vec3::ZERO,
                 kt: Vec3::ONE,
                 ior,
                 ..Material::default()
-            },
-        );
-        scene.add_instance(
-            "clear ball",
-            mesh,
-            clear,
-            Affine3A::from_translation(Vec3::new(0.0, 1.0, 0.0)),
-        );
+            };
+        }
     }
     scene
 }
@@ -446,8 +431,8 @@ fn a_clear_surface_of_index_one_disappears_and_extreme_indices_stay_finite() {
         shading: Shading::Phong,
         ..RenderSettings::default()
     };
-    let without = render_film(&clear_sphere(None), &settings);
-    let with = render_film(&clear_sphere(Some(1.0)), &settings);
+    let without = render_with(&clear_sphere(None), &settings);
+    let with = render_with(&clear_sphere(Some(1.0)), &settings);
     let err = image_error(&without, &with);
     eprintln!(
         "optics: clear sphere of IOR 1 against no sphere: {:.4} levels mean, {:.3}% of pixels off by > 8",
@@ -456,10 +441,10 @@ fn a_clear_surface_of_index_one_disappears_and_extreme_indices_stay_finite() {
     );
     assert!(err.mean_levels < 0.05 && err.fraction_off < 0.001, "{err:?}");
     // A glass sphere really does change the picture (the check can fail).
-    let glass = image_error(&without, &render_film(&clear_sphere(Some(1.5)), &settings));
+    let glass = image_error(&without, &render_with(&clear_sphere(Some(1.5)), &settings));
     assert!(glass.fraction_off > 0.05, "{glass:?}");
     for ior in [1e-3f32, 0.5, 2.42, 1e3, 1e6, 1e30, f32::MAX] {
-        let film = render_film(&clear_sphere(Some(ior)), &settings);
+        let film = render_with(&clear_sphere(Some(ior)), &settings);
         let n = film.stats().n_non_finite;
         eprintln!("optics: clear sphere of IOR {ior:e}: {n} NaN/Inf pixels");
         assert_eq!(n, 0, "IOR {ior}");
@@ -548,7 +533,7 @@ fn one_pixel_and_16384_pixel_wide_images() {
     assert_eq!(one.stats().n_non_finite, 0);
     // A 16384-pixel-wide strip: the field of view is vertical, so its
     // middle 1024 columns see exactly what a 1024-wide image sees.
-    let height = if full() { 512 } else { 8 };
+    let height = if extremes_full() { 512 } else { 8 };
     let wide = render_rs(&rs, 16384, height);
     let narrow = render_rs(&rs, 1024, height);
     assert_eq!(wide.stats().n_non_finite, 0);
@@ -650,6 +635,16 @@ fn bvh_agrees_with_brute_force(mesh: &lucent_geom::TriMesh) -> (usize, usize, us
     let b = mesh.bounds();
     let (c, r) = (b.center(), b.extent().length().max(1e-30));
     let mut out = (0, 0, 0, 0);
+    let mut tally = |ray: lucent_geom::Ray| {
+        let (a, bf) = (
+            bvh.intersect(&ray, f32::INFINITY),
+            bvh.intersect_brute_force(&ray, f32::INFINITY),
+        );
+        out.0 += 1;
+        out.1 += usize::from(a.is_some());
+        out.2 += usize::from(a.map(|h| h.t) != bf.map(|h| h.t));
+        out.3 += usize::from(a.is_some_and(|h| !(h.t.is_finite() && h.u.is_finite() && h.v.is_finite())));
+    };
     for dir in [
         Vec3::X,
         Vec3::Y,
@@ -661,28 +656,12 @@ fn bvh_agrees_with_brute_force(mesh: &lucent_geom::TriMesh) -> (usize, usize, us
         for i in 0..64 {
             for j in 0..64 {
                 let off = (i as f32 / 63.0 - 0.5) * u + (j as f32 / 63.0 - 0.5) * v;
-                let ray = lucent_geom::Ray::new(c + r * (off - 2.0 * dir), dir);
-                let (a, bf) = (
-                    bvh.intersect(&ray, f32::INFINITY),
-                    bvh.intersect_brute_force(&ray, f32::INFINITY),
-                );
-                out.0 += 1;
-                out.1 += usize::from(a.is_some());
-                out.2 += usize::from(a.map(|h| h.t) != bf.map(|h| h.t));
-                out.3 += usize::from(a.is_some_and(|h| !(h.t.is_finite() && h.u.is_finite() && h.v.is_finite())));
+                tally(lucent_geom::Ray::new(c + r * (off - 2.0 * dir), dir));
             }
         }
         for t in 0..mesh.n_triangles() {
             let [p0, p1, p2] = mesh.triangle(t);
-            let ray = lucent_geom::Ray::new((p0 + p1 + p2) / 3.0 - 2.0 * r * dir, dir);
-            let (a, bf) = (
-                bvh.intersect(&ray, f32::INFINITY),
-                bvh.intersect_brute_force(&ray, f32::INFINITY),
-            );
-            out.0 += 1;
-            out.1 += usize::from(a.is_some());
-            out.2 += usize::from(a.map(|h| h.t) != bf.map(|h| h.t));
-            out.3 += usize::from(a.is_some_and(|h| !(h.t.is_finite() && h.u.is_finite() && h.v.is_finite())));
+            tally(lucent_geom::Ray::new((p0 + p1 + p2) / 3.0 - 2.0 * r * dir, dir));
         }
     }
     out

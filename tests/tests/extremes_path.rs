@@ -17,17 +17,12 @@
 //! on stderr (`-- --nocapture`).
 
 use lucent_geom::Vec3;
-use lucent_render::{Integrator, RenderSettings, extract, render};
+use lucent_render::{Integrator, RenderSettings};
 use lucent_scene::components::{Light, Material, Name};
 use lucent_scene::{Environment, Scene};
 use lucent_shading::EnvironmentMap;
-use lucent_tests::{load_repo_scene, place_scene};
+use lucent_tests::{extremes_full, load_repo_scene, place_scene, render_with};
 use std::sync::Arc;
-
-/// Whether the slow sizes are on (`cargo xtask extremes`).
-fn full() -> bool {
-    std::env::var_os("LUCENT_EXTREMES_FULL").is_some()
-}
 
 /// Blocks per side: the image is cut into `BLOCKS x BLOCKS` block means.
 const BLOCKS: usize = 8;
@@ -183,8 +178,7 @@ struct Pixels {
 }
 
 fn render_pixels(scene: &Scene, settings: &RenderSettings) -> Pixels {
-    let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
-    let film = render(&rs, settings, &|_| {}).film;
+    let film = render_with(scene, settings);
     let (width, height) = (film.width() as usize, film.height() as usize);
     let mut n_non_finite = 0;
     let mut values = Vec::with_capacity(width * height);
@@ -334,7 +328,7 @@ fn bias_case(kind: Lighting, settings: &RenderSettings) -> Vec<Row> {
 #[test]
 fn the_path_tracer_keeps_its_light_at_every_scale_for_every_light() {
     // The normal suite: 48x48 pixels, 48 samples; full: 64x64, 1024.
-    let (size, spp) = if full() { (64, 1024) } else { (48, 48) };
+    let (size, spp) = if extremes_full() { (64, 1024) } else { (48, 48) };
     let settings = RenderSettings {
         width: size,
         height: size,
@@ -351,7 +345,7 @@ fn the_path_tracer_keeps_its_light_at_every_scale_for_every_light() {
             // render's paths part from the unit render's, under the point
             // light at scales 1e-6 and 1e-3, a block's standard error at
             // 1024 samples is about 0.5%, so 5 of them plus the floor is 3%.)
-            let blind = full()
+            let blind = extremes_full()
                 && (N_SIGMA * r.image.std_error + IMAGE_FLOOR > 0.01
                     || N_SIGMA * r.worst_block.std_error + BLOCK_FLOOR > 0.04);
             if r.n_non_finite > 0 || biased || blind {

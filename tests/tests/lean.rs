@@ -6,7 +6,7 @@ use lucent_geom::{Affine3A, Named, Vec3, shapes};
 use lucent_render::{ExtractOptions, Film, Integrator, RayStats, SceneFeatures, Shading, extract_with, render};
 use lucent_scene::Scene;
 use lucent_scene::components::{Camera, Light, Material, OrbitRig, Texture};
-use lucent_tests::load_repo_scene;
+use lucent_tests::{load_repo_scene, render_scene};
 use std::sync::Arc;
 
 /// Renders `scene` specialised and with every feature on, at a small size,
@@ -182,14 +182,6 @@ fn a_textured_scene_with_vertex_colours_and_lamps_renders_the_same_specialised()
     for m in plain.world.query_mut::<&mut Material>() {
         m.diffuse_map = None;
     }
-    let picture = |s: &Scene| {
-        let rs = extract_with(s, &ExtractOptions::default()).unwrap_or_else(|e| panic!("{e}"));
-        let settings = lucent_render::RenderSettings {
-            width: 32,
-            height: 24,
-            ..s.settings
-        };
-        render(&rs, &settings, &|_| {}).film.to_srgb8()
-    };
+    let picture = |s: &Scene| render_scene(s, |r| (r.width, r.height) = (32, 24)).to_srgb8();
     assert_ne!(picture(&scene), picture(&plain));
 }
