@@ -125,7 +125,7 @@ mod tests {
     use crate::{extract, render};
     use lucent_geom::{Affine3A, Ray, Vec2, Vec3, shapes};
     use lucent_scene::components::{Camera, Light, Material, OrbitRig};
-    use lucent_scene::{Environment, Integrator, RenderSettings, Scene};
+    use lucent_scene::{Integrator, RenderSettings, Scene, fixtures};
     use lucent_shading::{AlphaMode, Texture};
     use std::sync::Arc;
 
@@ -155,12 +155,7 @@ mod tests {
             .and_then(|t| t.with_alpha(alpha))
             .unwrap_or_else(|e| panic!("{e}"));
         let mut scene = Scene {
-            environment: Environment {
-                background: Vec3::ZERO,
-                ambient: Vec3::ZERO,
-                shadowed_ambient: false,
-                ..Environment::default()
-            },
+            environment: fixtures::dark(),
             ..Scene::default()
         };
         let plane = scene.add_mesh("plane", shapes::plane());

@@ -454,7 +454,7 @@ fn gather(scene: &Scene, origin: Vec3, all: bool) -> Result<Gathered, ExtractErr
     let mut lights: Vec<(u64, Light)> = world
         .query::<(Entity, &Light)>()
         .iter()
-        .map(|(e, l)| (e.to_bits().get(), render_space_light(*l, origin)))
+        .map(|(e, l)| (e.to_bits().get(), l.translated(-origin)))
         .collect();
     lights.sort_by_key(|l| l.0);
     let lights: Vec<Light> = lights.into_iter().map(|(_, l)| l).collect();
@@ -493,11 +493,6 @@ pub fn render_origin(rig: &OrbitRig) -> Vec3 {
     let grid = 2f32.powi((0.25 * rig.radius).log2().ceil() as i32);
     let origin = (rig.center / grid).round() * grid;
     if origin.is_finite() { origin } else { Vec3::ZERO }
-}
-
-/// `light` moved by `-origin`.
-fn render_space_light(light: Light, origin: Vec3) -> Light {
-    light.translated(-origin)
 }
 
 /// The index of `entity`'s item in `items`, fetching and appending it the
@@ -564,11 +559,6 @@ impl RenderScene {
             ..rig
         }
     }
-
-    /// Triangles stored (each shared mesh once).
-    pub fn n_unique_triangles(&self) -> usize {
-        self.meshes.iter().map(|m| m.n_triangles()).sum()
-    }
 }
 
 #[cfg(test)]
@@ -601,7 +591,8 @@ mod tests {
         let Ok(rs) = rs else { panic!("{rs:?}") };
         assert_eq!((rs.meshes.len(), rs.materials.len(), rs.instances.len()), (1, 1, 2));
         assert_eq!(rs.bvh.meshes().len(), 1);
-        assert_eq!((rs.n_instanced_triangles(), rs.n_unique_triangles()), (160, 80));
+        let stored: usize = rs.meshes.iter().map(|m| m.n_triangles()).sum();
+        assert_eq!((rs.n_instanced_triangles(), stored), (160, 80));
         assert_eq!(rs.instance_names, vec!["a".to_owned(), "b".to_owned()]);
         assert_eq!(rs.features.names(), ["transmissive", "smooth_normals"]);
     }

@@ -1,6 +1,7 @@
 //! The path tracer checked against answers known in closed form: white
 //! furnaces (emission everywhere, or a uniform background), the meaning of
-//! `max_depth`, and direct light from point and directional lights.
+//! `max_depth`, direct light from point and directional lights, and the
+//! cheap presets' two bends (`free_delta_bounces`, `clamp_indirect`).
 
 use super::*;
 use crate::{Film, extract, render, with_threads};
@@ -185,37 +186,25 @@ fn lit_floor(light: Light, kd: f32) -> RenderScene {
 fn point_and_directional_lights_give_lambert_direct_light() {
     let from = Vec3::new(0.0, 1.0, 1.0);
     let ray = Ray::new(from, (-from).normalize());
-    let s = settings(2, 1);
     let mut stats = RayStats::default();
     let mut rng = Pcg32::new(1, 0);
     // A point light of intensity 4 two units above the origin: irradiance
-    // 4 / 2^2 = 1 at the origin, times albedo / pi.
-    let rs = lit_floor(
-        Light::Point {
-            position: Vec3::new(0.0, 2.0, 0.0),
-            intensity: Vec3::splat(4.0),
-        },
-        0.5,
-    );
-    let l = PathTracer::new(&rs, &s).trace_primary(ray, &mut rng, &mut stats);
-    assert!(
-        (l - Vec3::splat(0.5 / std::f32::consts::PI)).abs().max_element() < 1e-5,
-        "{l}"
-    );
-    // A directional light at 60 degrees from the normal: irradiance cos 60 = 1/2.
-    let dir = Vec3::new(3f32.sqrt(), 1.0, 0.0).normalize();
-    let rs = lit_floor(
-        Light::Directional {
-            to_light: dir,
-            intensity: Vec3::ONE,
-        },
-        1.0,
-    );
-    let l = PathTracer::new(&rs, &s).trace_primary(ray, &mut rng, &mut stats);
-    assert!(
-        (l - Vec3::splat(0.5 / std::f32::consts::PI)).abs().max_element() < 1e-5,
-        "{l}"
-    );
+    // 4 / 2^2 = 1 at the origin, times albedo / pi. A directional light at
+    // 60 degrees from the normal: irradiance cos 60 = 1/2, times 1 / pi.
+    let point = Light::Point {
+        position: Vec3::new(0.0, 2.0, 0.0),
+        intensity: Vec3::splat(4.0),
+    };
+    let directional = Light::Directional {
+        to_light: Vec3::new(3f32.sqrt(), 1.0, 0.0).normalize(),
+        intensity: Vec3::ONE,
+    };
+    for (light, kd) in [(point, 0.5), (directional, 1.0)] {
+        let rs = lit_floor(light, kd);
+        let l = PathTracer::new(&rs, &settings(2, 1)).trace_primary(ray, &mut rng, &mut stats);
+        let want = Vec3::splat(0.5 / std::f32::consts::PI);
+        assert!((l - want).abs().max_element() < 1e-5, "{light:?}: {l}");
+    }
     assert!(stats.shadow >= 2);
 }
 
@@ -321,4 +310,58 @@ fn aov_buffers_do_not_depend_on_the_thread_count_and_leave_the_beauty_alone() {
     assert!(img.depth.iter().all(|d| *d > 0.0));
     assert!(img.depth.iter().any(|d| d.is_finite()));
     assert!(img.albedo.iter().all(|a| (0.0..=1.0).contains(a)));
+}
+
+#[test]
+fn free_delta_bounces_let_a_short_path_see_past_a_mirror() {
+    // Camera ray -> mirror floor -> ceiling: with max_depth 2 the path
+    // reaches the ceiling on its last segment and gathers no light there;
+    // one free delta bounce makes that the direct light of a depth-3 path,
+    // with the very same random numbers and radiance.
+    let from = Vec3::new(0.0, 1.0, 1.0);
+    let ray = Ray::new(from, (-from).normalize());
+    let rs = mirror_under_ceiling();
+    let trace = |s: &RenderSettings| {
+        PathTracer::new(&rs, s).trace_primary(ray, &mut Pcg32::new(5, 0), &mut RayStats::default())
+    };
+    assert_eq!(
+        trace(&settings(2, 1)),
+        Vec3::ZERO,
+        "the ceiling's light is beyond the limit"
+    );
+    let free = |n: u32| {
+        trace(&RenderSettings {
+            free_delta_bounces: n,
+            ..settings(2, 1)
+        })
+    };
+    assert!(free(1).max_element() > 0.0, "{}", free(1));
+    assert_eq!(free(1), trace(&settings(3, 1)));
+    // The ceiling is diffuse: a second free bounce has nothing to do.
+    assert_eq!(free(8), free(1));
+}
+
+#[test]
+fn clamp_indirect_caps_only_light_that_bounced() {
+    let rs = extract(&fixtures::glowing_box(1.0, 1.0)).unwrap_or_else(|e| panic!("{e}"));
+    let film = |depth: u32, clamp: f32| {
+        let s = RenderSettings {
+            clamp_indirect: clamp,
+            ..settings(depth, 16)
+        };
+        render(&rs, &s, &|_| {}).film
+    };
+    // No clamp, or one no contribution reaches: the same bytes.
+    assert_eq!(film(4, 0.0), film(4, 1e9));
+    // Depth 2 is emission seen directly plus direct light: nothing to clamp.
+    assert_eq!(film(2, 0.0), film(2, 0.01));
+    // Depth 3 adds one bounce of indirect light, worth 1 in this furnace
+    // (mean 3); capped at 0.05 per contribution, at most two per sample
+    // (emission found after two bounces, light sampled at the second
+    // surface), the mean stays near the direct part's 2.
+    let (full, _) = mean_and_spread(&film(3, 0.0));
+    let (capped, _) = mean_and_spread(&film(3, 0.05));
+    assert!((full - Vec3::splat(3.0)).abs().max_element() < 0.1, "{full}");
+    assert!(capped.max_element() <= 2.0 + 2.0 * 0.05 + 0.05, "{capped}");
+    assert!(capped.min_element() > 1.9, "{capped}");
 }

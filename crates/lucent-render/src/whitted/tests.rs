@@ -19,6 +19,17 @@ fn matte(k: f32) -> Material {
     }
 }
 
+/// Clear glass of index `ior`: it only transmits.
+fn clear(ior: f32) -> Material {
+    Material {
+        ka: Vec3::ZERO,
+        kd: Vec3::ZERO,
+        kt: Vec3::ONE,
+        ior,
+        ..Material::default()
+    }
+}
+
 /// A floor (y = 0, 100 wide, Ka = Kd = 0.5) lit from straight above, with
 /// the default ambient 0.2 (shadowed), and a 2x2x2 box floating over the origin (y from 1.5 to 3.5).
 fn floor_and_box(box_material: Material) -> Scene {
@@ -82,8 +93,8 @@ fn translucent_blockers_attenuate_and_clear_ones_do_not() {
         "{}",
         floor_at(&half, 0.0)
     );
-    let clear = floor_and_box(glass(1.0));
-    assert!(close(floor_at(&clear, 0.0), Vec3::splat(0.6)));
+    let see_through = floor_and_box(glass(1.0));
+    assert!(close(floor_at(&see_through, 0.0), Vec3::splat(0.6)));
     // Without the report's shadowed ambient, the ambient term survives.
     let mut scene = floor_and_box(matte(0.8));
     scene.environment.shadowed_ambient = false;
@@ -183,13 +194,7 @@ fn wall_and_sphere(sphere: Material) -> Scene {
 fn objects_behind_a_translucent_sphere_are_dimmed() {
     let from = Vec3::new(0.0, 0.0, 5.0);
     let to = Vec3::new(0.0, 0.0, -5.0);
-    let invisible = Material {
-        ka: Vec3::ZERO,
-        kd: Vec3::ZERO,
-        kt: Vec3::ONE,
-        ior: 1.5,
-        ..Material::default()
-    };
+    let invisible = clear(1.5);
     // Straight through the centre: no bending, full red.
     let c = trace(&wall_and_sphere(invisible.clone()), from, to);
     assert!(close(c, Vec3::X), "{c}");
@@ -217,14 +222,7 @@ fn total_internal_reflection_sends_light_back_inside() {
     // 41.8 degree critical angle), is reflected totally, leaves through the
     // bottom at 45 degrees and lands on the floor at x = -1.17, outside the
     // block's shadow: entry, internal reflection and exit are three rays.
-    let glass = Material {
-        ka: Vec3::ZERO,
-        kd: Vec3::ZERO,
-        kt: Vec3::ONE,
-        ior: 1.5,
-        ..Material::default()
-    };
-    let scene = floor_and_box(glass);
+    let scene = floor_and_box(clear(1.5));
     let (c, stats) = trace_with(
         &scene,
         &RenderSettings::default(),
@@ -237,20 +235,13 @@ fn total_internal_reflection_sends_light_back_inside() {
 
 #[test]
 fn dense_spheres_stay_finite() {
-    let glass = |ior: f32| Material {
-        ka: Vec3::ZERO,
-        kd: Vec3::ZERO,
-        kt: Vec3::ONE,
-        ior,
-        ..Material::default()
-    };
     let from = Vec3::new(0.0, 0.0, 5.0);
     let to = Vec3::new(0.8, 0.0, 0.0);
     // IOR 1: the surface disappears and the ray goes straight to the wall.
-    assert!(close(trace(&wall_and_sphere(glass(1.0)), from, to), Vec3::X));
+    assert!(close(trace(&wall_and_sphere(clear(1.0)), from, to), Vec3::X));
     // A very dense sphere bends the ray towards its centre; it enters and
     // leaves (a sphere cannot trap light) without producing NaN.
-    let (c, stats) = trace_with(&wall_and_sphere(glass(50.0)), &RenderSettings::default(), from, to);
+    let (c, stats) = trace_with(&wall_and_sphere(clear(50.0)), &RenderSettings::default(), from, to);
     assert!(c.is_finite());
     assert_eq!(stats.refraction, 2);
 }
