@@ -13,7 +13,7 @@ use lucent_assets::{LoadReport, MeshPart, load_mesh, load_scene};
 use lucent_geom::Named;
 use lucent_geom::{Aabb, TriMesh, Vec3};
 use lucent_scene::Scene;
-use lucent_scene::components::{Camera, Light, Material, MaterialRef, Mesh, MeshRef, Parent};
+use lucent_scene::components::{Light, Material, MaterialRef, Mesh, MeshRef, Parent};
 use serde_json::{Value, json};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -43,21 +43,20 @@ pub fn run(args: InfoArgs) -> Result<()> {
     Ok(())
 }
 
+/// The names whose flag is set.
+fn set<'a>(flags: impl IntoIterator<Item = (bool, &'a str)>) -> impl Iterator<Item = &'a str> {
+    flags.into_iter().filter_map(|(on, name)| on.then_some(name))
+}
+
 fn attributes(m: &TriMesh) -> Vec<&'static str> {
-    let mut a = vec!["positions"];
-    if m.normals().is_some() {
-        a.push("normals");
-    }
-    if m.uvs().is_some() {
-        a.push("uvs");
-    }
-    if m.colors().is_some() {
-        a.push("colors");
-    }
-    if m.tangents().is_some() {
-        a.push("tangents");
-    }
-    a
+    set([
+        (true, "positions"),
+        (m.normals().is_some(), "normals"),
+        (m.uvs().is_some(), "uvs"),
+        (m.colors().is_some(), "colors"),
+        (m.tangents().is_some(), "tangents"),
+    ])
+    .collect()
 }
 
 /// An `f32` as the shortest decimal that reads back to it (0.725, not
@@ -149,11 +148,7 @@ fn scene_info(path: &Path) -> Result<Value> {
 
 fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
     let w = &scene.world;
-    let n_meshes = w.query::<&Mesh>().iter().count();
-    let n_instances = w.query::<&MeshRef>().iter().count();
-    let n_materials = w.query::<&Material>().iter().count();
-    let n_cameras = w.query::<&Camera>().iter().count();
-    let n_parented = w.query::<&Parent>().iter().count();
+    let c = scene.counts();
     let mut n_point = 0;
     let mut n_directional = 0;
     let mut n_spot = 0;
@@ -165,54 +160,31 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
         }
     }
     let mut features: BTreeSet<&str> = BTreeSet::new();
-    let mut triangles = 0usize;
     for (mesh_ref, material_ref) in w.query::<(&MeshRef, Option<&MaterialRef>)>().iter() {
         if let Ok(mesh) = w.get::<&Mesh>(mesh_ref.0) {
-            triangles += mesh.0.n_triangles();
-            if mesh.0.colors().is_some() {
-                features.insert("vertex_colors");
-            }
-            if mesh.0.uvs().is_some() {
-                features.insert("uvs");
-            }
+            features.extend(set([
+                (mesh.0.colors().is_some(), "vertex_colors"),
+                (mesh.0.uvs().is_some(), "uvs"),
+            ]));
         }
-        let material = material_ref.and_then(|m| w.get::<&Material>(m.0).ok());
-        if let Some(m) = material {
-            if m.diffuse_map.is_some() {
-                features.insert("textures");
-            }
-            if m.is_reflective() {
-                features.insert("reflection");
-            }
-            if m.is_transmissive() {
-                features.insert("refraction");
-            }
-            if m.emission.max_element() > 0.0 {
-                features.insert("emission");
-            }
-            if m.pbr.is_some() {
-                features.insert("metallic_roughness");
-            }
-            if m.normal_map.is_some() {
-                features.insert("normal_maps");
-            }
-            if m.is_masked() {
-                features.insert("alpha_mask");
-            }
+        if let Some(m) = material_ref.and_then(|m| w.get::<&Material>(m.0).ok()) {
+            features.extend(set([
+                (m.diffuse_map.is_some(), "textures"),
+                (m.is_reflective(), "reflection"),
+                (m.is_transmissive(), "refraction"),
+                (m.emission.max_element() > 0.0, "emission"),
+                (m.pbr.is_some(), "metallic_roughness"),
+                (m.normal_map.is_some(), "normal_maps"),
+                (m.is_masked(), "alpha_mask"),
+            ]));
         }
     }
-    if n_parented > 0 {
-        features.insert("hierarchy");
-    }
-    if n_point > 0 {
-        features.insert("point_lights");
-    }
-    if n_directional > 0 {
-        features.insert("directional_lights");
-    }
-    if n_spot > 0 {
-        features.insert("spot_lights");
-    }
+    features.extend(set([
+        (w.query::<&Parent>().iter().count() > 0, "hierarchy"),
+        (n_point > 0, "point_lights"),
+        (n_directional > 0, "directional_lights"),
+        (n_spot > 0, "spot_lights"),
+    ]));
     // What the renderer specialises on, from the extract's own analysis
     // (null when the scene cannot be extracted, e.g. without a camera).
     let render_features = lucent_render::scene_features(scene, &lucent_render::ExtractOptions::default())
@@ -223,15 +195,15 @@ fn scene_json(path: &Path, scene: &Scene, report: &LoadReport) -> Value {
         "kind": "scene",
         "file": path.display().to_string(),
         "entities": {
-            "meshes": n_meshes,
-            "instances": n_instances,
-            "materials": n_materials,
+            "meshes": c.meshes,
+            "instances": c.instances,
+            "materials": c.materials,
             "point_lights": n_point,
             "directional_lights": n_directional,
             "spot_lights": n_spot,
-            "cameras": n_cameras,
+            "cameras": c.cameras,
         },
-        "instanced_triangles": triangles,
+        "instanced_triangles": c.instanced_triangles,
         "features": features,
         "render_features": render_features,
         "settings": {

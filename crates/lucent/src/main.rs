@@ -282,6 +282,12 @@ fn main() -> ExitCode {
     }
 }
 
+/// Checks the `-o` PNG and `--exr` paths that are given, before any work.
+fn check_outputs(png: Option<&Path>, exr: Option<&Path>) -> Result<()> {
+    png.map_or(Ok(()), check_png_path)?;
+    exr.map_or(Ok(()), check_exr_path)
+}
+
 /// The output path must be a PNG file that can be written.
 fn check_png_path(path: &Path) -> Result<()> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);

@@ -3,7 +3,7 @@
 //! byte for byte, after checking that they belong together and cover every
 //! share exactly once (`lucent_render::partial::Merger`).
 
-use crate::{check_exr_path, check_png_path};
+use crate::check_outputs;
 use anyhow::{Context, Result};
 use clap::Args;
 use lucent_geom::Named;
@@ -44,12 +44,7 @@ fn recorded_tonemap(settings_text: &str) -> Tonemap {
 }
 
 pub fn run(args: MergeArgs) -> Result<()> {
-    if let Some(png) = &args.output {
-        check_png_path(png)?;
-    }
-    if let Some(exr) = &args.exr {
-        check_exr_path(exr)?;
-    }
+    check_outputs(args.output.as_deref(), args.exr.as_deref())?;
     let start = Instant::now();
     let mut merger = Merger::new();
     for part in &args.parts {

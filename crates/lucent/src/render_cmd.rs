@@ -1,6 +1,6 @@
 //! `lucent render`: headless rendering to a PNG and/or a linear EXR file.
 
-use crate::{QualityArgs, check_exr_path, check_png_path, prepare_scene};
+use crate::{QualityArgs, check_outputs, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -109,12 +109,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(frames) = args.farm.turntable {
         return crate::farm::run_turntable(&args, frames);
     }
-    if let Some(png) = &args.output {
-        check_png_path(png)?;
-    }
-    if let Some(exr) = &args.exr {
-        check_exr_path(exr)?;
-    }
+    check_outputs(args.output.as_deref(), args.exr.as_deref())?;
     let (mut scene, name, load_s) = prepare_scene(args.scene.as_deref(), &args.quality, args.spp)?;
     if args.time_budget.is_some() || args.target_error.is_some() {
         // --spp is the cap here, not the scene's spp.
@@ -151,7 +146,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     } else {
         None
     };
-    let (rs, build_s, out, n_threads, refined) = with_threads(threads, || -> Result<_> {
+    let (rs, build_s, mut out, aovs, n_threads, refined) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
         let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
@@ -170,9 +165,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         let (out, aovs, refined) = render_mode(&rs, &settings, &args, want_aovs, &bar);
         bar.finish_and_clear();
-        Ok((rs, build_s, (out, aovs), current_threads(), refined))
+        Ok((rs, build_s, out, aovs, current_threads(), refined))
     })??;
-    let (mut out, aovs) = out;
     let (w, h) = (out.film.width(), out.film.height());
     let mut denoised_note = String::new();
     if let Some(denoiser) = &denoiser {
@@ -245,35 +239,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
         Integrator::Whitted => format!("whitted {}", settings.shading.name()),
         Integrator::Path => format!("path max_depth {}", settings.max_depth),
     };
-    if let Some(refined) = refined {
-        println!(
-            "{}: {}x{}, {}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.2} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s{denoised_note}",
-            outputs.join(" + "),
-            settings.width,
-            settings.height,
-            refined,
-            rs.n_instanced_triangles(),
-            rays as f64 / 1e6,
-            rays as f64 / 1e6 / secs.max(1e-9),
-        );
-        return Ok(());
-    }
+    let (what, per_spp) = match refined {
+        Some(refined) => (refined, String::new()),
+        None => (
+            format!("{} spp", settings.spp),
+            format!(", {:.3} s/spp", secs / f64::from(settings.spp.max(1))),
+        ),
+    };
     println!(
-        "{}: {}x{}, {} spp, {}, {} threads, {} triangles: rendered in {:.2} s (load {:.2} s, BVH {:.3} s), {:.2} M rays, {:.2} Mrays/s, {:.3} s/spp{}",
+        "{}: {}x{}, {what}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.2} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s{per_spp}{denoised_note}",
         outputs.join(" + "),
         settings.width,
         settings.height,
-        settings.spp,
-        mode,
-        n_threads,
         rs.n_instanced_triangles(),
-        secs,
-        load_s,
-        build_s,
         rays as f64 / 1e6,
         rays as f64 / 1e6 / secs.max(1e-9),
-        secs / f64::from(settings.spp.max(1)),
-        denoised_note,
     );
     Ok(())
 }
@@ -288,35 +268,29 @@ fn render_mode(
     aovs: bool,
     bar: &ProgressBar,
 ) -> (RenderOutput, Option<AovFilm>, Option<String>) {
-    let (out, refined) = render_image(rs, settings, args, aovs, bar);
-    match out {
-        Rendered::WithAovs(out, aov_film) => (out, Some(aov_film), refined),
-        Rendered::Plain(out) if aovs => {
-            // Modes that sample unevenly or to a clock record no AOVs:
-            // guide buffers from a short separate pass.
+    let (out, aov_film, refined) = render_image(rs, settings, args, aovs, bar);
+    // Modes that sample unevenly or to a clock record no AOVs: guide
+    // buffers from a short separate pass.
+    let aov_film = aov_film.or_else(|| {
+        aovs.then(|| {
             let (w, h) = (out.film.width(), out.film.height());
             let mut scratch = Film::new(w, h);
             let mut aov_film = AovFilm::new(w, h);
             render_samples_aov(rs, settings, &mut scratch, &mut aov_film, 0..GUIDE_SPP, &|_| {});
-            (out, Some(aov_film), refined)
-        }
-        Rendered::Plain(out) => (out, None, refined),
-    }
+            aov_film
+        })
+    });
+    (out, aov_film, refined)
 }
 
-/// A render, with its AOVs when it recorded them.
-enum Rendered {
-    Plain(RenderOutput),
-    WithAovs(RenderOutput, AovFilm),
-}
-
+/// [`render_mode`] without the guide pass: only a plain render records AOVs.
 fn render_image(
     rs: &RenderScene,
     settings: &RenderSettings,
     args: &RenderArgs,
     aovs: bool,
     bar: &ProgressBar,
-) -> (Rendered, Option<String>) {
+) -> (RenderOutput, Option<AovFilm>, Option<String>) {
     if let Some(share) = args.farm.part {
         let out = lucent_render::partial::render_share(rs, settings, share, &|rows| bar.set_position(rows as u64));
         let r = share.samples(settings.spp);
@@ -327,7 +301,7 @@ fn render_image(
             settings.spp,
             out.elapsed.as_secs_f64() / r.len().max(1) as f64
         );
-        return (Rendered::Plain(out), Some(refined));
+        return (out, None, Some(refined));
     }
     if let Some(budget) = args.time_budget {
         bar.set_style(
@@ -348,7 +322,7 @@ fn render_image(
             "time budget {budget_s} s: {spp} spp reached{capped}, {samples} samples, {secs:.3} s elapsed ({:+.1}% of the budget)",
             (secs / budget_s - 1.0) * 100.0
         );
-        return (Rendered::Plain(out), Some(refined));
+        return (out, None, Some(refined));
     }
     if let Some(target) = args.target_error {
         bar.set_style(
@@ -377,7 +351,7 @@ fn render_image(
             stats: out.stats,
             elapsed: out.elapsed,
         };
-        return (Rendered::Plain(plain), Some(refined));
+        return (plain, None, Some(refined));
     }
     let (w, h) = (settings.width.max(1), settings.height.max(1));
     let mut film = Film::new(w, h);
@@ -395,9 +369,5 @@ fn render_image(
         stats,
         elapsed: start.elapsed(),
     };
-    if aovs {
-        (Rendered::WithAovs(out, aov_film), None)
-    } else {
-        (Rendered::Plain(out), None)
-    }
+    (out, aovs.then_some(aov_film), None)
 }
