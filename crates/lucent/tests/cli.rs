@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{lucent, scratch, stderr};
+use common::{lucent, lucent_with, run_err, run_fail, run_ok, s, scratch, stderr};
 
 /// Runs `lucent render` on a scene text and returns the error output, which
 /// must be one `error:` line with a non-zero exit code and no panic.
@@ -12,16 +12,7 @@ fn render_error(name: &str, scene_text: &str) -> String {
     let dir = scratch("cli", name);
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, scene_text).unwrap();
-    let out = lucent()
-        .arg("render")
-        .arg(&scene)
-        .arg("-o")
-        .arg(dir.join("x.png"))
-        .output()
-        .unwrap();
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(!err.contains("panicked"), "{err}");
+    let err = run_fail(1, "render", &[s(&scene), "-o", s(&dir.join("x.png"))]);
     let lines: Vec<&str> = err.lines().filter(|l| !l.starts_with("warning:")).collect();
     assert_eq!(lines.len(), 1, "one error line expected: {err}");
     assert!(!dir.join("x.png").exists(), "no output on error");
@@ -32,23 +23,8 @@ fn render_error(name: &str, scene_text: &str) -> String {
 fn path_traces_the_cornell_box_to_exr_and_an_exposed_png() {
     let dir = scratch("cli", "cornell");
     let (exr, png, bright) = (dir.join("c.exr"), dir.join("c.png"), dir.join("bright.png"));
-    let run = |extra: &[&str]| {
-        let out = lucent()
-            .args([
-                "render",
-                "res/scenes/cornell-mitsuba.toml",
-                "--size",
-                "24x24",
-                "--spp",
-                "2",
-            ])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "{}", stderr(&out));
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
-    let summary = run(&["--exr", exr.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    let run = |extra: &[&str]| run_ok("render res/scenes/cornell-mitsuba.toml --size 24x24 --spp 2", extra);
+    let summary = run(&["--exr", s(&exr), "-o", s(&png)]);
     assert!(summary.contains("path max_depth 16"), "{summary}");
     let (w, h, rgb) = lucent_assets::decode_exr(&std::fs::read(&exr).unwrap(), &exr).unwrap();
     assert_eq!((w, h, rgb.len()), (24, 24, 24 * 24 * 3));
@@ -56,7 +32,7 @@ fn path_traces_the_cornell_box_to_exr_and_an_exposed_png() {
     // The light (radiance 15) is in the picture, unclamped in the EXR.
     assert!(rgb.iter().any(|v| *v > 10.0), "no light in the EXR");
     // The same render two stops brighter: no PNG value darker.
-    run(&["--exposure", "2", "-o", bright.to_str().unwrap()]);
+    run(&["--exposure", "2", "-o", s(&bright)]);
     let a = lucent_assets::texture_from_bytes(&std::fs::read(&png).unwrap(), &png).unwrap();
     let b = lucent_assets::texture_from_bytes(&std::fs::read(&bright).unwrap(), &bright).unwrap();
     let (mut brighter, mut darker) = (0, 0);
@@ -70,36 +46,19 @@ fn path_traces_the_cornell_box_to_exr_and_an_exposed_png() {
     assert_eq!(darker, 0);
     assert!(brighter > 24 * 24 / 2, "{brighter}");
     // --exr alone is enough; a wrong extension is an error.
-    run(&["--exr", exr.to_str().unwrap(), "--integrator", "whitted"]);
-    let out = lucent()
-        .args(["render", "res/scenes/cornell-mitsuba.toml", "--exr", "x.png"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(stderr(&out).contains("must end in .exr"), "{}", stderr(&out));
+    run(&["--exr", s(&exr), "--integrator", "whitted"]);
+    let err = run_err("render res/scenes/cornell-mitsuba.toml --exr x.png", &[]);
+    assert!(err.contains("must end in .exr"), "{err}");
 }
 
 #[test]
 fn renders_the_seed_scene_to_png() {
     let dir = scratch("cli", "seed");
     let png = dir.join("seed.png");
-    let out = lucent()
-        .args([
-            "render",
-            "res/scenes/seed.toml",
-            "--size",
-            "96x54",
-            "--spp",
-            "1",
-            "--threads",
-            "2",
-            "-o",
-        ])
-        .arg(&png)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", stderr(&out));
-    let summary = String::from_utf8_lossy(&out.stdout);
+    let summary = run_ok(
+        "render res/scenes/seed.toml --size 96x54 --spp 1 --threads 2 -o",
+        &[s(&png)],
+    );
     assert!(
         summary.contains("96x54, 1 spp") && summary.contains("Mrays/s"),
         "{summary}"
@@ -135,29 +94,13 @@ fn missing_mesh_file_is_located() {
 
 #[test]
 fn missing_scene_file_and_bad_output_are_errors() {
-    let out = lucent()
-        .args(["render", "no/such/scene.toml", "-o", "/tmp/x.png"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(
-        stderr(&out).starts_with("error: no/such/scene.toml: "),
-        "{}",
-        stderr(&out)
-    );
-    let out = lucent()
-        .args(["render", "res/scenes/seed.toml", "-o", "x.jpg"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(stderr(&out).contains("only PNG output"), "{}", stderr(&out));
+    let err = run_err("render no/such/scene.toml -o /tmp/x.png", &[]);
+    assert!(err.starts_with("error: no/such/scene.toml: "), "{err}");
+    let err = run_err("render res/scenes/seed.toml -o x.jpg", &[]);
+    assert!(err.contains("only PNG output"), "{err}");
     // Malformed flags are usage errors (exit code 2), caught by clap.
-    let out = lucent()
-        .args(["render", "res/scenes/seed.toml", "-o", "x.png", "--size", "0x10"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(stderr(&out).contains("not a size from 1 to 16384"), "{}", stderr(&out));
+    let err = run_fail(2, "render res/scenes/seed.toml -o x.png --size 0x10", &[]);
+    assert!(err.contains("not a size from 1 to 16384"), "{err}");
 }
 
 #[test]
@@ -176,15 +119,9 @@ fn viewer_without_a_display_points_to_headless_rendering() {
 #[test]
 fn help_lists_the_viewer_controls() {
     // The viewer is the default command, so plain --help lists its keys too.
-    let out = lucent().arg("--help").output().unwrap();
-    let help = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && help.contains("Controls:") && help.contains("left mouse drag"),
-        "{help}"
-    );
-    let out = lucent().args(["view", "--help"]).output().unwrap();
-    let help = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success());
+    let help = run_ok("--help", &[]);
+    assert!(help.contains("Controls:") && help.contains("left mouse drag"), "{help}");
+    let help = run_ok("view --help", &[]);
     for key in [
         "arrow keys",
         "mouse drag",
@@ -209,12 +146,7 @@ fn viewer_opens_renders_and_saves_a_screenshot() {
     }
     let dir = scratch("cli", "viewer");
     let shot = dir.join("shot.png");
-    let out = lucent()
-        .args(["view", "--frames", "4", "--size", "160x90", "--screenshot"])
-        .arg(&shot)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", stderr(&out));
+    run_ok("view --frames 4 --size 160x90 --screenshot", &[s(&shot)]);
     let tex = lucent_assets::texture_from_bytes(&std::fs::read(&shot).unwrap(), &shot).unwrap();
     assert_eq!((tex.width(), tex.height()), (160, 90));
     // The seed scene fills much of the frame with lit objects and floor.
@@ -227,47 +159,24 @@ fn viewer_opens_renders_and_saves_a_screenshot() {
 
 #[test]
 fn bench_render_measures_the_specialised_and_the_all_features_renderer() {
-    let bench = |extra: &[&str]| {
-        let out = lucent()
-            .args([
-                "bench",
-                "render",
-                "res/scenes/seed.toml",
-                "--size",
-                "24x16",
-                "--spp",
-                "1",
-                "--reps",
-                "1",
-            ])
-            .args(extra)
-            .output()
-            .unwrap();
-        (
-            out.status.code(),
-            String::from_utf8_lossy(&out.stdout).into_owned(),
-            stderr(&out),
-        )
-    };
-    let json = |extra: &[&str]| {
-        let (code, stdout, err) = bench(extra);
-        assert_eq!(code, Some(0), "{err}");
+    let bench = "bench render res/scenes/seed.toml --size 24x16 --spp 1 --reps 1";
+    let json = |extra: &str| {
+        let stdout = run_ok(&format!("{bench} {extra}"), &[]);
         serde_json::from_str::<serde_json::Value>(&stdout).unwrap_or_else(|e| panic!("{e}: {stdout}"))
     };
-    let lean = json(&["--without", "sphere"]);
+    let lean = json("--without sphere");
     assert_eq!(lean["all_features"], false);
     assert_eq!(
         lean["features"],
         serde_json::json!(["reflective", "textured", "directional_lights", "smooth_normals"])
     );
-    let all = json(&["--without", "sphere", "--all-features"]);
+    let all = json("--without sphere --all-features");
     assert_eq!(all["all_features"], true);
     assert_eq!(all["features"].as_array().map(Vec::len), Some(9));
     // The same image means the same rays.
     assert_eq!(lean["rays"], all["rays"]);
-    assert!(lean["triangles"].as_u64() < json(&[])["triangles"].as_u64());
-    let (code, _, err) = bench(&["--without", "teapot"]);
-    assert_eq!(code, Some(1), "{err}");
+    assert!(lean["triangles"].as_u64() < json("")["triangles"].as_u64());
+    let err = run_fail(1, &format!("{bench} --without teapot"), &[]);
     assert!(err.contains("no object named 'teapot'"), "{err}");
 }
 
@@ -287,12 +196,7 @@ fn an_unwritable_output_fails_before_rendering() {
         assert!(out.stdout.is_empty(), "nothing rendered");
     }
     // A writable path is left as it was found: no empty file behind.
-    let out = lucent()
-        .args(["render", "--size", "0x1", "-o"])
-        .arg(dir.join("x.png"))
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
+    run_fail(2, "render --size 0x1 -o", &[s(&dir.join("x.png"))]);
     assert!(!dir.join("x.png").exists());
 }
 
@@ -300,19 +204,12 @@ fn an_unwritable_output_fails_before_rendering() {
 fn render_takes_the_built_in_scene_and_quiet_and_verbose_flags() {
     let dir = scratch("cli", "builtin");
     let png = dir.join("seed.png");
-    let render = |extra: &[&str]| {
-        lucent()
-            .args(["render", "--size", "32x18", "--spp", "1", "-o"])
-            .arg(&png)
-            .args(extra)
-            .output()
-            .unwrap()
-    };
-    let out = render(&[]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    assert!(String::from_utf8_lossy(&out.stdout).contains("32x18, 1 spp"));
+    let summary = run_ok("render --size 32x18 --spp 1 -o", &[s(&png)]);
+    assert!(summary.contains("32x18, 1 spp"), "{summary}");
     assert!(png.exists());
-    let verbose = render(&["-v"]);
+    let verbose = lucent_with("render --size 32x18 --spp 1 -v -o", &[s(&png)])
+        .output()
+        .unwrap();
     let err = stderr(&verbose);
     assert!(err.contains("note: built-in seed scene: loaded in"), "{err}");
     // A mesh whose MTL file is missing loads with a warning (magenta).
@@ -320,13 +217,9 @@ fn render_takes_the_built_in_scene_and_quiet_and_verbose_flags() {
     std::fs::write(dir.join("m.obj"), obj).unwrap();
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, "[[objects]]\nmesh = \"m.obj\"\n").unwrap();
-    let with_scene = |flag: &str| {
-        let mut cmd = lucent();
-        cmd.arg("render").arg(&scene).args(["--size", "8x8", "-o"]).arg(&png);
-        if !flag.is_empty() {
-            cmd.arg(flag);
-        }
-        cmd.output().unwrap()
+    let with_scene = |flags: &str| {
+        let cmd = format!("render --size 8x8 {flags} -o");
+        lucent_with(&cmd, &[s(&png), s(&scene)]).output().unwrap()
     };
     let out = with_scene("");
     assert!(

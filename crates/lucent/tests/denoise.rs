@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{lucent, scratch, stderr};
+use common::{lucent, lucent_with, run_err, run_fail, run_ok, s, scratch, stderr};
 
 const CORNELL: &str = "res/scenes/cornell-mitsuba.toml";
 
@@ -17,22 +17,10 @@ fn has(bytes: &[u8], needle: &[u8]) -> bool {
 fn aovs_go_into_the_exr_as_layers_and_need_an_exr_and_the_path_tracer() {
     let dir = scratch("denoise", "aov");
     let exr = dir.join("a.exr");
-    let out = lucent()
-        .args([
-            "render",
-            CORNELL,
-            "--size",
-            "16x16",
-            "--spp",
-            "2",
-            "--aov",
-            "albedo,normal,depth",
-        ])
-        .arg("--exr")
-        .arg(&exr)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", stderr(&out));
+    run_ok(
+        &format!("render {CORNELL} --size 16x16 --spp 2 --aov albedo,normal,depth --exr"),
+        &[s(&exr)],
+    );
     let bytes = std::fs::read(&exr).unwrap();
     for channel in [
         "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z",
@@ -43,40 +31,30 @@ fn aovs_go_into_the_exr_as_layers_and_need_an_exr_and_the_path_tracer() {
     assert_eq!((w, h, rgb.len()), (16, 16, 16 * 16 * 3));
     // Only the layers asked for.
     let depth_only = dir.join("d.exr");
-    let out = lucent()
-        .args([
-            "render", CORNELL, "--size", "8x8", "--spp", "1", "--aov", "depth", "--exr",
-        ])
-        .arg(&depth_only)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", stderr(&out));
+    run_ok(
+        &format!("render {CORNELL} --size 8x8 --spp 1 --aov depth --exr"),
+        &[s(&depth_only)],
+    );
     let bytes = std::fs::read(&depth_only).unwrap();
     assert!(has(&bytes, b"depth.Z\0") && !has(&bytes, b"albedo.R\0"));
 
     // No EXR to put them in: a usage error.
-    let out = lucent()
-        .args(["render", CORNELL, "--aov", "albedo", "-o"])
-        .arg(dir.join("x.png"))
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
-    assert!(stderr(&out).contains("--exr"), "{}", stderr(&out));
+    let err = run_fail(
+        2,
+        &format!("render {CORNELL} --aov albedo -o"),
+        &[s(&dir.join("x.png"))],
+    );
+    assert!(err.contains("--exr"), "{err}");
     // An unknown buffer.
-    let out = lucent()
-        .args(["render", CORNELL, "--aov", "albedo,motion", "--exr"])
-        .arg(dir.join("y.exr"))
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    run_fail(
+        2,
+        &format!("render {CORNELL} --aov albedo,motion --exr"),
+        &[s(&dir.join("y.exr"))],
+    );
     // Whitted records none.
-    let out = lucent()
-        .args(["render", CORNELL, "--integrator", "whitted", "--aov", "depth", "--exr"])
-        .arg(dir.join("z.exr"))
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(stderr(&out).contains("path tracer"), "{}", stderr(&out));
+    let whitted = format!("render {CORNELL} --integrator whitted --aov depth --exr");
+    let err = run_err(&whitted, &[s(&dir.join("z.exr"))]);
+    assert!(err.contains("path tracer"), "{err}");
 }
 
 #[test]
@@ -99,13 +77,10 @@ fn denoise_without_the_library_says_how_to_install_it() {
 #[test]
 fn denoise_with_an_error_target_is_refused_with_the_reason() {
     let dir = scratch("denoise", "target");
-    let out = lucent()
-        .args(["render", CORNELL, "--target-error", "0.1", "--denoise", "-o"])
-        .arg(dir.join("t.png"))
-        .output()
-        .unwrap();
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    let err = run_err(
+        &format!("render {CORNELL} --target-error 0.1 --denoise -o"),
+        &[s(&dir.join("t.png"))],
+    );
     assert!(err.contains("--target-error") && err.contains("variance"), "{err}");
 }
 
@@ -113,16 +88,11 @@ fn denoise_with_an_error_target_is_refused_with_the_reason() {
 fn denoise_renders_where_oidn_is_installed() {
     let dir = scratch("denoise", "run");
     let (noisy, denoised) = (dir.join("n.exr"), dir.join("d.exr"));
-    let render = |exr: &std::path::Path, denoise: bool| {
-        let mut cmd = lucent();
-        cmd.args(["render", CORNELL, "--size", "48x48", "--spp", "4", "--exr"])
-            .arg(exr);
-        if denoise {
-            cmd.arg("--denoise");
-        }
-        cmd.output().unwrap()
+    let render = |exr: &std::path::Path, flags: &str| {
+        let cmd = format!("render {CORNELL} --size 48x48 --spp 4 {flags} --exr");
+        lucent_with(&cmd, &[s(exr)]).output().unwrap()
     };
-    let out = render(&denoised, true);
+    let out = render(&denoised, "--denoise");
     if !out.status.success() {
         let err = stderr(&out);
         let required = std::env::var("LUCENT_REQUIRE_OIDN").is_ok_and(|v| v == "1");
@@ -131,7 +101,7 @@ fn denoise_renders_where_oidn_is_installed() {
         return;
     }
     assert!(String::from_utf8_lossy(&out.stdout).contains("denoised (OIDN RT"));
-    assert!(render(&noisy, false).status.success());
+    assert!(render(&noisy, "").status.success());
     let read = |p: &std::path::Path| lucent_assets::decode_exr(&std::fs::read(p).unwrap(), p).unwrap().2;
     let (n, d) = (read(&noisy), read(&denoised));
     assert!(d.iter().all(|v| v.is_finite() && *v >= 0.0));
@@ -153,24 +123,8 @@ fn denoise_renders_where_oidn_is_installed() {
 #[test]
 fn a_share_of_a_split_render_is_not_denoised() {
     let dir = scratch("denoise", "part");
-    let out = lucent()
-        .args([
-            "render",
-            CORNELL,
-            "--size",
-            "8x8",
-            "--spp",
-            "4",
-            "--part",
-            "1/2",
-            "--denoise",
-            "--partial",
-        ])
-        .arg(dir.join("p.lpart"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = stderr(&out);
+    let share = format!("render {CORNELL} --size 8x8 --spp 4 --part 1/2 --denoise --partial");
+    let err = run_err(&share, &[s(&dir.join("p.lpart"))]);
     assert!(err.contains("--part 1/2 with --denoise is refused"), "{err}");
     assert!(!dir.join("p.lpart").exists(), "nothing is written");
 }

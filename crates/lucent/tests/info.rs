@@ -4,17 +4,15 @@
 
 mod common;
 
-use common::repo_root;
+use common::{lucent, repo_root};
 use serde_json::Value;
 use std::path::Path;
-use std::process::Command;
 
 /// Runs `lucent info FILE`: the parsed JSON, or the exit code and stderr.
 fn info(file: &Path) -> Result<Value, (Option<i32>, String)> {
-    let out = Command::new(env!("CARGO_BIN_EXE_lucent"))
+    let out = lucent()
         .arg("info")
         .arg(file)
-        .current_dir(repo_root())
         .output()
         .map_err(|e| (None, e.to_string()))?;
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();

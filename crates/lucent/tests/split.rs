@@ -6,31 +6,11 @@
 
 mod common;
 
-use common::{lucent, scratch, stderr};
+use common::{run_err, run_ok, s, scratch};
 use std::path::{Path, PathBuf};
 
 /// The Cornell box, small: a quick render in a debug build.
 const SCENE: &str = "res/scenes/cornell-mitsuba.toml";
-
-fn run_ok(args: &[&str]) -> String {
-    let out = lucent().args(args).output().unwrap();
-    assert!(out.status.success(), "lucent {}: {}", args.join(" "), stderr(&out));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// Runs a command that must fail with exit code 1 and one error line; returns it.
-fn run_err(args: &[&str]) -> String {
-    let out = lucent().args(args).output().unwrap();
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "lucent {}: {err}", args.join(" "));
-    assert!(!err.contains("panicked"), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
-    err
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn read(p: &Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
@@ -38,14 +18,11 @@ fn read(p: &Path) -> Vec<u8> {
 
 /// Renders the `n` shares of a render with `quality` into `dir` and returns
 /// their paths.
-fn parts(dir: &Path, quality: &[&str], n: u32) -> Vec<PathBuf> {
+fn parts(dir: &Path, quality: &str, n: u32) -> Vec<PathBuf> {
     (1..=n)
         .map(|k| {
             let p = dir.join(format!("n{n}.{k}.lpart"));
-            let share = format!("{k}/{n}");
-            let mut args = vec!["render", SCENE, "--part", &share, "--partial", s(&p)];
-            args.extend_from_slice(quality);
-            run_ok(&args);
+            run_ok(&format!("render {SCENE} --part {k}/{n} {quality} --partial"), &[s(&p)]);
             p
         })
         .collect()
@@ -54,45 +31,22 @@ fn parts(dir: &Path, quality: &[&str], n: u32) -> Vec<PathBuf> {
 #[test]
 fn merged_shares_are_byte_identical_to_one_render_for_both_integrators() {
     for (name, quality) in [
-        (
-            "path",
-            &[
-                "--size",
-                "20x16",
-                "--spp",
-                "7",
-                "--integrator",
-                "path",
-                "--max-depth",
-                "6",
-            ][..],
-        ),
-        (
-            "whitted",
-            &[
-                "--size",
-                "20x16",
-                "--spp",
-                "7",
-                "--integrator",
-                "whitted",
-                "--shading",
-                "phong",
-            ][..],
-        ),
+        ("path", "--size 20x16 --spp 7 --integrator path --max-depth 6"),
+        ("whitted", "--size 20x16 --spp 7 --integrator whitted --shading phong"),
     ] {
         let dir = scratch("split", name);
         let (png, exr) = (dir.join("one.png"), dir.join("one.exr"));
-        let mut args = vec!["render", SCENE, "-o", s(&png), "--exr", s(&exr), "--exposure", "1.5"];
-        args.extend_from_slice(quality);
-        run_ok(&args);
+        run_ok(
+            &format!("render {SCENE} --exposure 1.5 {quality}"),
+            &["-o", s(&png), "--exr", s(&exr)],
+        );
         for n in [1, 2, 3, 7] {
             let parts = parts(&dir, quality, n);
             let (m_png, m_exr) = (dir.join(format!("m{n}.png")), dir.join(format!("m{n}.exr")));
-            let mut args = vec!["merge", "-o", s(&m_png), "--exr", s(&m_exr), "--exposure", "1.5"];
+            let mut args = vec!["-o", s(&m_png), "--exr", s(&m_exr), "--exposure", "1.5"];
             // In reverse order: the order of the parts does not matter.
             args.extend(parts.iter().rev().map(|p| s(p)));
-            let summary = run_ok(&args);
+            let summary = run_ok("merge", &args);
             assert!(summary.contains(&format!("merged {n} parts")), "{summary}");
             assert!(read(&m_png) == read(&png), "{name}: PNG of {n} merged parts differs");
             assert!(read(&m_exr) == read(&exr), "{name}: EXR of {n} merged parts differs");
@@ -103,36 +57,31 @@ fn merged_shares_are_byte_identical_to_one_render_for_both_integrators() {
 #[test]
 fn bad_parts_are_refused_by_name_and_a_rerun_replaces_a_share() {
     let dir = scratch("split", "bad");
-    let q = ["--size", "12x8", "--spp", "3", "--integrator", "path"];
-    let p = parts(&dir, &q, 3);
+    let q = "--size 12x8 --spp 3 --integrator path";
+    let p = parts(&dir, q, 3);
     let out = dir.join("x.png");
-    let merge = |parts: &[&Path]| {
-        let mut args = vec!["merge", "-o", s(&out)];
+    let merge = |run: fn(&str, &[&str]) -> String, parts: &[&Path]| {
+        let mut args = vec!["-o", s(&out)];
         args.extend(parts.iter().map(|p| s(p)));
-        args.iter().map(|a| (*a).to_owned()).collect::<Vec<String>>()
+        run("merge", &args)
     };
-    let err = |parts: &[&Path]| {
-        let args = merge(parts);
-        run_err(&args.iter().map(String::as_str).collect::<Vec<_>>())
-    };
+    let err = |parts: &[&Path]| merge(run_err, parts);
     assert!(err(&[&p[0], &p[2]]).contains("missing share 2/3 of 3"));
     let dup = err(&[&p[0], &p[1], &p[1], &p[2]]);
     assert!(dup.contains("n3.2.lpart: share 2/3 again"), "{dup}");
     // A share rendered with other settings names the setting.
-    let mut args = vec!["render", SCENE, "--part", "2/3", "--partial", s(&p[1]), "--seed", "5"];
-    args.extend_from_slice(&q);
-    run_ok(&args);
+    run_ok(
+        &format!("render {SCENE} --part 2/3 {q} --seed 5 --partial"),
+        &[s(&p[1])],
+    );
     let e = err(&[&p[0], &p[1], &p[2]]);
     assert!(
         e.contains("n3.2.lpart: does not belong with") && e.contains("'seed: 5' here, 'seed: 0' there"),
         "{e}"
     );
     // Re-running the share replaces the file.
-    let mut args = vec!["render", SCENE, "--part", "2/3", "--partial", s(&p[1])];
-    args.extend_from_slice(&q);
-    run_ok(&args);
-    let args = merge(&[&p[0], &p[1], &p[2]]);
-    run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    run_ok(&format!("render {SCENE} --part 2/3 {q} --partial"), &[s(&p[1])]);
+    merge(run_ok, &[&p[0], &p[1], &p[2]]);
     assert!(
         !std::fs::read_dir(&dir)
             .unwrap()
@@ -153,32 +102,16 @@ fn bad_parts_are_refused_by_name_and_a_rerun_replaces_a_share() {
     assert!(err(&[&png]).contains("not a Lucent partial file"));
     // Another scene.
     let other = dir.join("other.lpart");
-    run_ok(&[
-        "render",
-        "res/scenes/seed.toml",
-        "--part",
-        "3/3",
-        "--partial",
-        s(&other),
-        "--size",
-        "12x8",
-        "--spp",
-        "3",
-        "--integrator",
-        "path",
-    ]);
+    run_ok(
+        &format!("render res/scenes/seed.toml --part 3/3 {q} --partial"),
+        &[s(&other)],
+    );
     assert!(err(&[&p[0], &p[1], &other]).contains("other.lpart: does not belong with"));
     // More shares than samples is refused before rendering.
-    let e = run_err(&[
-        "render",
-        SCENE,
-        "--part",
-        "1/4",
-        "--partial",
-        s(&dir.join("y.lpart")),
-        "--spp",
-        "3",
-    ]);
+    let e = run_err(
+        &format!("render {SCENE} --part 1/4 --spp 3 --partial"),
+        &[s(&dir.join("y.lpart"))],
+    );
     assert!(e.contains("at most 3 shares"), "{e}");
     assert!(!dir.join("y.lpart").exists());
 }
@@ -186,21 +119,17 @@ fn bad_parts_are_refused_by_name_and_a_rerun_replaces_a_share() {
 #[test]
 fn turntable_frame_ranges_make_the_frames_of_the_whole_orbit() {
     let dir = scratch("split", "turntable");
-    let q = ["--size", "16x12", "--spp", "1"];
+    let turntable = format!("render {SCENE} --size 16x12 --spp 1 --turntable 4");
     let all = dir.join("all");
     let pattern = format!("{}/f###.png", s(&all));
     std::fs::create_dir_all(&all).unwrap();
-    let mut args = vec!["render", SCENE, "--turntable", "4", "-o", &pattern];
-    args.extend_from_slice(&q);
-    let summary = run_ok(&args);
+    let summary = run_ok(&turntable, &["-o", &pattern]);
     assert_eq!(summary.lines().count(), 4, "{summary}");
     let part = dir.join("part");
     std::fs::create_dir_all(&part).unwrap();
     let pattern = format!("{}/f###.png", s(&part));
     for range in ["0..1", "1..4"] {
-        let mut args = vec!["render", SCENE, "--turntable", "4", "--frames", range, "-o", &pattern];
-        args.extend_from_slice(&q);
-        run_ok(&args);
+        run_ok(&turntable, &["--frames", range, "-o", &pattern]);
     }
     for f in 0..4 {
         let name = format!("f{f:03}.png");
@@ -212,12 +141,10 @@ fn turntable_frame_ranges_make_the_frames_of_the_whole_orbit() {
     );
     // Frame 0 is the plain render.
     let plain = dir.join("plain.png");
-    let mut args = vec!["render", SCENE, "-o", s(&plain)];
-    args.extend_from_slice(&q);
-    run_ok(&args);
+    run_ok(&format!("render {SCENE} --size 16x12 --spp 1 -o"), &[s(&plain)]);
     assert!(read(&plain) == read(&all.join("f000.png")));
-    let e = run_err(&["render", SCENE, "--turntable", "4", "--frames", "2..5", "-o", &pattern]);
+    let e = run_err(&turntable, &["--frames", "2..5", "-o", &pattern]);
     assert!(e.contains("frames 0 to 3"), "{e}");
-    let e = run_err(&["render", SCENE, "--turntable", "4", "-o", s(&plain)]);
+    let e = run_err(&turntable, &["-o", s(&plain)]);
     assert!(e.contains("needs '#'"), "{e}");
 }
