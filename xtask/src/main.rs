@@ -191,18 +191,21 @@ fn pending_snapshots(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
+/// The snapshot tests in a release build, insta writing what changed as
+/// `INSTA_UPDATE=update` says.
+fn snapshot_tests(update: &str) -> Result<(), String> {
+    let mut cmd = cargo();
+    cmd.env("INSTA_UPDATE", update).env_remove("CI");
+    run(cmd.args(["test", "--release", "-p", "lucent-tests"]))
+}
+
 fn snap(args: &[String]) -> Result<(), String> {
     let mode = args.first().map(String::as_str);
     let snapshots = root().join("tests/tests/snapshots");
     match mode {
         Some("--accept") => {
             // Overwrite every snapshot with what the code renders now.
-            run(cargo().env("INSTA_UPDATE", "always").env_remove("CI").args([
-                "test",
-                "--release",
-                "-p",
-                "lucent-tests",
-            ]))?;
+            snapshot_tests("always")?;
             println!("accepted; review the changes with `git diff --stat tests/tests/snapshots` before committing");
             Ok(())
         }
@@ -210,12 +213,7 @@ fn snap(args: &[String]) -> Result<(), String> {
             run(cargo().args(["insta", "test", "--release", "-p", "lucent-tests", "--review"]))
         }
         None | Some("--review") => {
-            let res = run(cargo().env("INSTA_UPDATE", "new").env_remove("CI").args([
-                "test",
-                "--release",
-                "-p",
-                "lucent-tests",
-            ]));
+            let res = snapshot_tests("new");
             let mut pending = Vec::new();
             pending_snapshots(&snapshots, &mut pending);
             pending.sort();
