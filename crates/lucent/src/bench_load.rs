@@ -16,12 +16,14 @@
 //! asset source (the document, its buffers and, when decoded, its images).
 //! Its peak memory is not measured.
 
+use crate::WatchedSource;
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use lucent_assets::{MeshPart, PlyFormat, load_mesh, save_ply};
+use lucent_assets::{FileSystem, MeshPart, PlyFormat, load_mesh, save_ply};
 use lucent_geom::{TriMesh, Vec3};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// Arguments of `lucent bench load`.
@@ -137,30 +139,22 @@ fn measure(file: &Path, reps: u32) -> Result<String> {
     .to_string())
 }
 
-/// An asset source that counts the bytes it serves.
-struct Counting {
-    bytes: std::sync::atomic::AtomicU64,
-}
-
-impl lucent_assets::AssetSource for Counting {
-    fn read(&self, path: &Path) -> Result<std::borrow::Cow<'_, [u8]>, lucent_assets::AssetError> {
-        let b = lucent_assets::FileSystem.read(path)?;
-        self.bytes
-            .fetch_add(b.len() as u64, std::sync::atomic::Ordering::Relaxed);
-        Ok(std::borrow::Cow::Owned(b.into_owned()))
-    }
-}
-
-/// One glTF load through a counting source: seconds, bytes read, triangles.
+/// One glTF load through a source that counts the bytes it serves:
+/// seconds, bytes read, triangles.
 fn load_gltf_once(file: &Path, skip_images: bool) -> Result<(f64, u64, usize)> {
-    let source = Counting {
-        bytes: std::sync::atomic::AtomicU64::new(0),
+    let bytes = AtomicU64::new(0);
+    let count = |b: &[u8]| {
+        bytes.fetch_add(b.len() as u64, Ordering::Relaxed);
+    };
+    let source = WatchedSource {
+        inner: FileSystem,
+        seen: count,
     };
     let start = Instant::now();
     let (scene, _) = lucent_assets::load_gltf_from(&source, file, lucent_assets::GltfOptions { skip_images })?;
     let secs = start.elapsed().as_secs_f64();
     let triangles = scene.counts().instanced_triangles;
-    Ok((secs, source.bytes.into_inner(), triangles))
+    Ok((secs, bytes.into_inner(), triangles))
 }
 
 fn measure_gltf(file: &Path, reps: u32) -> Result<String> {

@@ -12,17 +12,16 @@
 //! assets, so the app reads and writes them with std::fs itself.
 
 use crate::render_cmd::RenderArgs;
-use crate::{check_png_path, prepare_scene};
+use crate::{WatchedSource, check_png_path, prepare_scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use lucent_assets::{AssetError, AssetSource, FileSystem};
+use lucent_assets::{AssetSource, FileSystem};
 use lucent_render::partial::{PartialHeader, Share, write_partial};
 use lucent_render::{ExtractOptions, Film, RenderSettings, current_threads, extract_with, render, with_threads};
-use std::borrow::Cow;
 use std::io::Write;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// The farm options of `lucent render`.
@@ -68,26 +67,6 @@ fn parse_frames(s: &str) -> Result<Range<u32>, String> {
     if a < b { Ok(a..b) } else { Err(bad()) }
 }
 
-/// An [`AssetSource`] that reads from disk and remembers a hash of every
-/// file read, so a scene is named by its content (the scene file and every
-/// mesh and texture it loads), wherever it lies.
-struct HashingSource<S> {
-    inner: S,
-    hashes: Mutex<Vec<u64>>,
-}
-
-impl<S: AssetSource> AssetSource for HashingSource<S> {
-    fn read(&self, path: &Path) -> Result<Cow<'_, [u8]>, AssetError> {
-        let bytes = self.inner.read(path)?;
-        let h = fnv1a(&bytes);
-        self.hashes
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .push(h);
-        Ok(Cow::Owned(bytes.into_owned()))
-    }
-}
-
 /// FNV-1a, 64 bits.
 fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
@@ -97,18 +76,14 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// A hash of the content of the scene file at `path` (the built-in seed
 /// scene when `None`) and of every file it loads (in no particular order,
-/// so not of their names or paths).
+/// so not of their names or paths), so a scene is named by its content
+/// wherever it lies.
 pub fn scene_hash(path: Option<&Path>) -> Result<u64> {
     fn hash_with<S: AssetSource>(inner: S, path: &Path) -> Result<u64> {
-        let source = HashingSource {
-            inner,
-            hashes: Mutex::default(),
-        };
-        lucent_assets::load_scene_from(&source, path)?;
-        let mut hashes = source
-            .hashes
-            .into_inner()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let hashes = Mutex::new(Vec::new());
+        let push = |bytes: &[u8]| hashes.lock().unwrap_or_else(PoisonError::into_inner).push(fnv1a(bytes));
+        lucent_assets::load_scene_from(&WatchedSource { inner, seen: push }, path)?;
+        let mut hashes = hashes.into_inner().unwrap_or_else(PoisonError::into_inner);
         hashes.sort_unstable();
         let bytes: Vec<u8> = hashes.iter().flat_map(|h| h.to_le_bytes()).collect();
         Ok(fnv1a(&bytes))

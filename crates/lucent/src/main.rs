@@ -18,11 +18,12 @@ mod viewer;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use lucent_assets::LoadReport;
+use lucent_assets::{AssetError, AssetSource, LoadReport};
 use lucent_render::quality::{self, QualityPreset};
 use lucent_render::{ExtractOptions, RenderOverrides};
 use lucent_scene::{Integrator, Scene, Shading, Tonemap};
 use named_arg::named;
+use std::borrow::Cow;
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -237,6 +238,21 @@ fn prepare_scene(path: Option<&Path>, quality: &QualityArgs, spp: Option<u32>) -
         scene.settings.spp = spp;
     }
     Ok((scene, name, load_s))
+}
+
+/// An asset source that reads through `inner` and shows `seen` the bytes
+/// of every file it serves (to hash or count what a load reads).
+struct WatchedSource<S, F> {
+    inner: S,
+    seen: F,
+}
+
+impl<S: AssetSource, F: Fn(&[u8]) + Sync> AssetSource for WatchedSource<S, F> {
+    fn read(&self, path: &Path) -> Result<Cow<'_, [u8]>, AssetError> {
+        let bytes = self.inner.read(path)?;
+        (self.seen)(&bytes);
+        Ok(bytes)
+    }
 }
 
 /// Loads a scene file, or the built-in seed scene when `path` is `None`.
