@@ -1,44 +1,49 @@
-//! The AVX2 box test: the one module of this crate with `unsafe` code.
+//! The AVX2 kernel: the one module of this crate with `unsafe` code.
 //!
 //! [`Avx2::detect`] checks at run time that the processor has AVX2 and FMA;
-//! only then does an [`Avx2`] value exist, and only through it is the walk
-//! compiled for those features ([`Avx2::walk`]) entered. The binary therefore
-//! runs on any x86-64 (the portable walk in [`crate::wide`] serves the
-//! others) and this module is compiled on x86-64 only.
+//! only then does an [`Avx2`] value exist, and only through it is code
+//! compiled for those features entered ([`Avx2::run`]: a query runs inside
+//! it, its walk and leaf tests inlined there). The binary therefore runs on
+//! any x86-64 (the portable code in [`crate::wide`] and
+//! [`lucent_geom::PreparedRay::intersect_lanes`] serves the others) and this
+//! module is compiled on x86-64 only.
 //!
-//! The box test does what [`SlabRay::test`] does, in one 256-bit register
-//! per quantity: the same subtraction then multiplication (no fused
-//! multiply-add, which would round differently), `max`/`min` whose operand
-//! order keeps the running value when the new one is NaN (as the portable
-//! compare-and-select does) and the same `<=` for the mask. Its results are
-//! the portable test's, bit for bit, which the tests check on random and
-//! hostile rays. The whole walk, leaf tests included, is compiled with AVX2
-//! enabled; Rust never contracts separate multiplies and adds into FMAs, so
-//! the triangle tests round as in the portable build too.
+//! Two tests live here, each repeating the portable code's operations in
+//! the same order, so their answers are the portable ones bit for bit (the
+//! tests below check it on random and hostile input):
 //!
-//! The watertight triangle test on a pack of four ([`intersect4`]) is here
-//! too, in SSE (part of every x86-64, so it needs no detection): the
-//! operations of [`PreparedRay::intersect_watertight`] in the same order on
-//! four lanes, with the rare f64 edge fallback lane by lane, so every lane is
-//! the scalar test's answer bit for bit (checked in the tests against the
-//! portable [`PreparedRay::intersect4_lanes`]). The compiler's own
-//! vectorisation of the portable four-lane loops shuffled lanes about and
-//! cost several times as many instructions.
+//! - the eight-box slab test ([`SlabRay::test`] in one 256-bit register per
+//!   quantity: the same subtraction then multiplication, no fused
+//!   multiply-add, `max`/`min` whose operand order keeps the running value
+//!   when the new one is NaN, the same `<=` for the mask);
+//! - the watertight test of a pack of eight triangles
+//!   ([`lucent_geom::PreparedRay::intersect_lanes`], Woop, Benthin and Wald
+//!   2013, on eight lanes). It first computes only the three edge functions
+//!   and leaves when no lane can be hit (every lane's edge functions of
+//!   strictly mixed signs, none exactly zero): most packs a ray visits end
+//!   there, before the determinant, the division and the distance. The rare
+//!   f64 fallback for edge functions that come out exactly zero runs lane by
+//!   lane, out of line.
 //!
-//! `unsafe` here: the call into the `#[target_feature]` walk (sound because
-//! an [`Avx2`] proves the features present) and the unaligned loads and
-//! stores of `[f32; 8]` and `[f32; 4]` arrays (sound because each array
-//! holds exactly the floats moved).
+//! Rust never contracts separate multiplies and adds into FMAs, so code
+//! compiled here rounds as the portable build does.
+//!
+//! `unsafe` here: the call into the `#[target_feature]` function (sound
+//! because an [`Avx2`] proves the features present), the intrinsics called
+//! from functions that take an [`Avx2`] (the same proof), and the unaligned
+//! loads and stores of `[f32; 8]` arrays (sound because each array holds
+//! exactly the floats moved).
 #![allow(unsafe_code, reason = "the AVX2 kernel; see the module docs")]
 
-use crate::wide::{BoxTest, SlabRay, Tally, W, WideBvh, WideNode};
-use lucent_geom::{PackHits, PreparedRay, Ray, TriangleHit, TrianglePack4, edge_f64};
+use crate::mesh_bvh::{LeafTest, PortableLeaf};
+use crate::wide::Query;
+use crate::wide::{BoxTest, SlabRay, W, WideNode};
+use lucent_geom::{PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, edge_f64};
 use std::arch::x86_64::{
-    __m128, __m256, _CMP_LE_OQ, _mm_add_ps, _mm_and_ps, _mm_andnot_ps, _mm_castsi128_ps, _mm_cmpeq_ps, _mm_cmplt_ps,
-    _mm_cmpneq_ps, _mm_div_ps, _mm_loadu_ps, _mm_min_ps, _mm_movemask_ps, _mm_mul_ps, _mm_or_ps, _mm_set1_epi32,
-    _mm_set1_ps, _mm_setr_epi32, _mm_setzero_ps, _mm_shuffle_ps, _mm_storeu_ps, _mm_sub_ps, _mm256_cmp_ps,
-    _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps,
-    _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
+    __m256, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm256_add_ps, _mm256_and_ps,
+    _mm256_andnot_ps, _mm256_blendv_ps, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_div_ps, _mm256_loadu_ps,
+    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
+    _mm256_permute2f128_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps,
 };
 
 /// Proof that the processor has AVX2 and FMA (made only by
@@ -55,321 +60,359 @@ impl Avx2 {
             .then_some(Self { _private: () })
     }
 
-    /// [`WideBvh::walk`] with the AVX2 box test, compiled for AVX2 and FMA.
+    /// Runs query `q` with the AVX2 box test and AVX2 pack tests, compiled
+    /// for AVX2 and FMA: the query, the walk and the tests inline into one
+    /// function with those features, so the intrinsics inline into it.
     #[inline]
-    pub(crate) fn walk<const ORDERED: bool, F, T>(
-        self,
-        wide: &WideBvh,
-        ray: &Ray,
-        t_max: f32,
-        leaf: F,
-        tally: &mut T,
-    ) -> bool
-    where
-        F: FnMut(usize, usize, &mut f32) -> bool,
-        T: Tally,
-    {
+    pub(crate) fn run<Q: Query>(self, q: Q) -> Q::Output {
         // SAFETY: an `Avx2` exists only where `detect` found AVX2 and FMA.
-        unsafe { walk_avx2::<ORDERED, F, T>(self, wide, ray, t_max, leaf, tally) }
+        unsafe { run_avx2(self, q) }
+    }
+
+    /// [`Avx2::run`] with the portable pack tests (for Moller-Trumbore).
+    #[inline]
+    pub(crate) fn run_boxes<Q: Query>(self, q: Q) -> Q::Output {
+        // SAFETY: an `Avx2` exists only where `detect` found AVX2 and FMA.
+        unsafe { run_boxes_avx2(self, q) }
     }
 }
 
 #[target_feature(enable = "avx2,fma")]
-fn walk_avx2<const ORDERED: bool, F, T>(
-    avx2: Avx2,
-    wide: &WideBvh,
-    ray: &Ray,
-    t_max: f32,
-    leaf: F,
-    tally: &mut T,
-) -> bool
-where
-    F: FnMut(usize, usize, &mut f32) -> bool,
-    T: Tally,
-{
-    wide.walk_sized::<ORDERED, Avx2, F, T>(avx2, ray, t_max, leaf, tally)
+fn run_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
+    q.run(avx2, avx2)
+}
+
+#[target_feature(enable = "avx2,fma")]
+fn run_boxes_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
+    q.run(avx2, PortableLeaf)
 }
 
 impl BoxTest for Avx2 {
     #[inline(always)]
     fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
-        // SAFETY: `self` proves AVX2 and FMA present.
-        unsafe { test8(slab, node, t_bound) }
-    }
-}
-
-/// Loads eight floats.
-#[inline]
-#[target_feature(enable = "avx2,fma")]
-fn load(lanes: &[f32; W]) -> __m256 {
-    // SAFETY: the array holds exactly the eight floats read (unaligned load).
-    unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
-}
-
-/// [`SlabRay::test`] on eight lanes at once.
-#[inline]
-#[target_feature(enable = "avx2,fma")]
-fn test8(slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
-    let mut t_in = _mm256_setzero_ps();
-    let mut t_out = _mm256_set1_ps(t_bound);
-    for axis in 0..3 {
-        let near = load(&node.bounds[slab.near[axis]][axis]);
-        let far = load(&node.bounds[1 - slab.near[axis]][axis]);
-        let o = _mm256_set1_ps(slab.origin[axis]);
-        let a = _mm256_mul_ps(_mm256_sub_ps(near, o), _mm256_set1_ps(slab.inv_near[axis]));
-        let b = _mm256_mul_ps(_mm256_sub_ps(far, o), _mm256_set1_ps(slab.inv_far[axis]));
-        // maxps/minps return the second operand when either is NaN: the
-        // running value, as the portable compare-and-select keeps it.
-        t_in = _mm256_max_ps(a, t_in);
-        t_out = _mm256_min_ps(b, t_out);
-    }
-    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_in, t_out)) as u32;
-    let mut out = [0.0f32; W];
-    // SAFETY: `out` holds exactly the eight floats written (unaligned store).
-    unsafe { _mm256_storeu_ps(out.as_mut_ptr(), t_in) };
-    (out, mask)
-}
-
-/// Loads four floats.
-#[inline]
-#[target_feature(enable = "sse2")]
-fn load4(lanes: &[f32; 4]) -> __m128 {
-    // SAFETY: the array holds exactly the four floats read (unaligned load).
-    unsafe { _mm_loadu_ps(lanes.as_ptr()) }
-}
-
-/// Stores four floats.
-#[inline]
-#[target_feature(enable = "sse2")]
-fn store4(v: __m128) -> [f32; 4] {
-    let mut out = [0.0f32; 4];
-    // SAFETY: `out` holds exactly the four floats written (unaligned store).
-    unsafe { _mm_storeu_ps(out.as_mut_ptr(), v) };
-    out
-}
-
-/// A ray prepared for the SSE triangle test: the watertight test's axis
-/// permutation, and its origin and shear constants in every lane (made once
-/// per ray, at the first leaf).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Ray4 {
-    /// `[kx, ky, kz]`, each below 3.
-    k: [usize; 3],
-    /// Origin components along kx, ky, kz.
-    o: [__m128; 3],
-    /// Shear constants sx, sy, sz.
-    s: [__m128; 3],
-}
-
-impl Ray4 {
-    /// `ray`'s constants in lanes (`ray` prepared for the watertight test).
-    #[inline(always)]
-    pub(crate) fn new(ray: &PreparedRay) -> Self {
-        // SAFETY: SSE and SSE2 are part of every x86-64 processor (this
-        // module is compiled for x86-64 only).
-        unsafe { ray4_sse(ray) }
-    }
-
-    /// The nearest lane hit with `0 < t < t_max` among `pack`'s four
-    /// triangles (the lowest lane among equals) and its hit: what
-    /// [`PackHits::nearest`] of [`PreparedRay::intersect4_lanes`] gives, bit
-    /// for bit.
-    #[inline(always)]
-    pub(crate) fn nearest(&self, pack: &TrianglePack4, t_max: f32) -> Option<(usize, TriangleHit)> {
-        // SAFETY: as in `new`.
-        unsafe { nearest_sse(self, pack, t_max) }
-    }
-
-    /// Whether any of `pack`'s triangles is hit with `0 < t < t_max`.
-    #[inline(always)]
-    pub(crate) fn any(&self, pack: &TrianglePack4, t_max: f32) -> bool {
-        // SAFETY: as in `new`.
-        unsafe { hits_sse(self, pack, t_max).mask != 0 }
-    }
-
-    /// All four lanes' answers.
-    #[inline(always)]
-    pub(crate) fn hits(&self, pack: &TrianglePack4, t_max: f32) -> PackHits {
-        // SAFETY: as in `new`.
-        let h = unsafe { hits_sse(self, pack, t_max) };
-        // SAFETY: as in `new`.
-        unsafe { h.to_pack_hits() }
-    }
-}
-
-#[inline]
-#[target_feature(enable = "sse2")]
-fn ray4_sse(ray: &PreparedRay) -> Ray4 {
-    let k = ray.axes();
-    let o = ray.ray.origin;
-    Ray4 {
-        k,
-        o: k.map(|k| _mm_set1_ps(o[k])),
-        s: ray.shear().map(|s| _mm_set1_ps(s)),
-    }
-}
-
-/// The four lanes of a pack test, in registers.
-#[derive(Clone, Copy)]
-struct Hits4 {
-    /// Lanes hit.
-    mask: u32,
-    t: __m128,
-    v: __m128,
-    w: __m128,
-    inv_det: __m128,
-}
-
-impl Hits4 {
-    #[inline]
-    #[target_feature(enable = "sse2")]
-    fn to_pack_hits(self) -> PackHits {
-        PackHits {
-            mask: self.mask,
-            t: store4(self.t),
-            v: store4(self.v),
-            w: store4(self.w),
-            inv_det: store4(self.inv_det),
+        // SAFETY: `self` proves AVX2 and FMA present; the loads and the
+        // store move exactly the eight floats of each array.
+        unsafe {
+            let mut t_in = _mm256_setzero_ps();
+            let mut t_out = _mm256_set1_ps(t_bound);
+            for axis in 0..3 {
+                let near = load(&node.bounds[slab.near[axis]][axis]);
+                let far = load(&node.bounds[1 - slab.near[axis]][axis]);
+                let o = _mm256_set1_ps(slab.origin[axis]);
+                let a = _mm256_mul_ps(_mm256_sub_ps(near, o), _mm256_set1_ps(slab.inv_near[axis]));
+                let b = _mm256_mul_ps(_mm256_sub_ps(far, o), _mm256_set1_ps(slab.inv_far[axis]));
+                // maxps/minps return the second operand when either is NaN:
+                // the running value, as the portable compare-and-select
+                // keeps it.
+                t_in = _mm256_max_ps(a, t_in);
+                t_out = _mm256_min_ps(b, t_out);
+            }
+            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_in, t_out)) as u32;
+            (store(t_in), mask)
         }
     }
 }
 
-/// [`Ray4::nearest`]: the lanes' distances with misses at infinity, their
-/// minimum across lanes, and the lowest lane that holds it.
-#[inline]
-#[target_feature(enable = "sse2")]
-fn nearest_sse(ray: &Ray4, pack: &TrianglePack4, t_max: f32) -> Option<(usize, TriangleHit)> {
-    let h = hits_sse(ray, pack, t_max);
-    if h.mask == 0 {
-        return None;
-    }
-    // Misses at +inf (hit distances are finite and below t_max).
-    let lanes = [0u32, 1, 2, 3].map(|l| if h.mask & (1 << l) != 0 { -1i32 } else { 0 });
-    let keep = _mm_castsi128_ps(_mm_setr_epi32(lanes[0], lanes[1], lanes[2], lanes[3]));
-    let t = _mm_or_ps(_mm_and_ps(keep, h.t), _mm_andnot_ps(keep, _mm_set1_ps(f32::INFINITY)));
-    let m = _mm_min_ps(t, _mm_shuffle_ps::<0b10_11_00_01>(t, t));
-    let m = _mm_min_ps(m, _mm_shuffle_ps::<0b01_00_11_10>(m, m));
-    let at_min = _mm_movemask_ps(_mm_cmpeq_ps(t, m)) as u32 & h.mask;
-    let lane = (at_min.trailing_zeros() & 3) as usize;
-    let [t, v, w, inv_det] = [h.t, h.v, h.w, h.inv_det].map(|x| store4(x));
-    Some((
-        lane,
-        TriangleHit {
-            t: t[lane],
-            u: v[lane] * inv_det[lane],
-            v: w[lane] * inv_det[lane],
-        },
-    ))
+/// Loads eight floats.
+///
+/// # Safety
+/// Needs AVX (an [`Avx2`] proves it).
+#[inline(always)]
+unsafe fn load(lanes: &[f32; W]) -> __m256 {
+    // SAFETY: the array holds exactly the eight floats read (unaligned
+    // load); the caller has AVX.
+    unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
 }
 
-/// The watertight test of `ray` against the four triangles of `pack`:
-/// [`PreparedRay::intersect4_lanes`] in SSE, bit for bit.
-#[inline]
-#[target_feature(enable = "sse2")]
-fn hits_sse(ray: &Ray4, pack: &TrianglePack4, t_max: f32) -> Hits4 {
-    let [kx, ky, kz] = ray.k;
-    let [ox, oy, oz] = ray.o;
-    let [sx, sy, sz] = ray.s;
-    // Vertices in the sheared frame, as in intersect_watertight.
-    let shear = |v: &[[f32; 4]; 3]| {
-        let dz = _mm_sub_ps(load4(&v[kz]), oz);
-        let x = _mm_sub_ps(_mm_sub_ps(load4(&v[kx]), ox), _mm_mul_ps(sx, dz));
-        let y = _mm_sub_ps(_mm_sub_ps(load4(&v[ky]), oy), _mm_mul_ps(sy, dz));
+/// Stores eight floats.
+///
+/// # Safety
+/// Needs AVX (an [`Avx2`] proves it).
+#[inline(always)]
+unsafe fn store(v: __m256) -> [f32; W] {
+    let mut out = [0.0f32; W];
+    // SAFETY: `out` holds exactly the eight floats written (unaligned
+    // store); the caller has AVX.
+    unsafe { _mm256_storeu_ps(out.as_mut_ptr(), v) };
+    out
+}
+
+/// A ray prepared for the eight-lane triangle test: the watertight test's
+/// axis permutation, and its origin and shear constants in every lane.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Ray8 {
+    /// `[kx, ky, kz]`, each below 3.
+    k: [usize; 3],
+    /// Origin components along kx, ky, kz.
+    o: [__m256; 3],
+    /// Shear constants sx, sy, sz.
+    s: [__m256; 3],
+}
+
+/// The eight lanes of a pack test, in registers.
+#[derive(Clone, Copy)]
+struct Hits8 {
+    /// Lanes hit, one bit each.
+    mask: u32,
+    /// All ones in the lanes hit.
+    ok: __m256,
+    t: __m256,
+    v: __m256,
+    w: __m256,
+    inv_det: __m256,
+}
+
+impl LeafTest for Avx2 {
+    type Ray = Ray8;
+
+    #[inline(always)]
+    fn prepare(self, ray: &Ray, _test: TriangleTest) -> Ray8 {
+        let prepared = PreparedRay::new(ray, TriangleTest::Watertight);
+        let k = prepared.axes();
+        let o = ray.origin;
+        let [sx, sy, sz] = prepared.shear();
+        // SAFETY: `self` proves AVX. (No closures here: a closure would not
+        // be compiled for AVX, and the intrinsics in it would not inline.)
+        unsafe {
+            Ray8 {
+                k,
+                o: [
+                    _mm256_set1_ps(o[k[0] % 3]),
+                    _mm256_set1_ps(o[k[1] % 3]),
+                    _mm256_set1_ps(o[k[2] % 3]),
+                ],
+                s: [_mm256_set1_ps(sx), _mm256_set1_ps(sy), _mm256_set1_ps(sz)],
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn nearest(self, ray: &Ray8, pack: &TrianglePack8, t_max: f32) -> Option<(usize, TriangleHit)> {
+        let h = self.hits8(ray, pack, t_max);
+        if h.mask == 0 {
+            return None;
+        }
+        // SAFETY: `self` proves AVX2.
+        unsafe {
+            // Misses at +inf (hit distances are finite and below t_max),
+            // then the minimum over the lanes and the lowest lane holding it.
+            let t = _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), h.t, h.ok);
+            let m = _mm256_min_ps(t, _mm256_permute2f128_ps::<1>(t, t));
+            let m = _mm256_min_ps(m, _mm256_permute_ps::<0b01_00_11_10>(m));
+            let m = _mm256_min_ps(m, _mm256_permute_ps::<0b10_11_00_01>(m));
+            let at_min = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_EQ_OQ>(t, m)) as u32 & h.mask;
+            let lane = (at_min.trailing_zeros() & 7) as usize;
+            let (t, v, w, inv_det) = (store(h.t), store(h.v), store(h.w), store(h.inv_det));
+            Some((
+                lane,
+                TriangleHit {
+                    t: t[lane],
+                    u: v[lane] * inv_det[lane],
+                    v: w[lane] * inv_det[lane],
+                },
+            ))
+        }
+    }
+
+    #[inline(always)]
+    fn any(self, ray: &Ray8, pack: &TrianglePack8, t_max: f32) -> bool {
+        self.hits8(ray, pack, t_max).mask != 0
+    }
+
+    #[inline(always)]
+    fn hits(self, ray: &Ray8, pack: &TrianglePack8, t_max: f32) -> PackHits<8> {
+        let h = self.hits8(ray, pack, t_max);
+        // SAFETY: `self` proves AVX.
+        unsafe {
+            PackHits {
+                mask: h.mask,
+                t: store(h.t),
+                v: store(h.v),
+                w: store(h.w),
+                inv_det: store(h.inv_det),
+            }
+        }
+    }
+}
+
+impl Avx2 {
+    /// The watertight test of `ray` against the eight triangles of `pack`:
+    /// [`PreparedRay::intersect_lanes`] in AVX2, bit for bit, leaving early
+    /// (mask 0, the other fields zero) when no lane's edge functions allow a
+    /// hit.
+    #[inline(always)]
+    fn hits8(self, ray: &Ray8, pack: &TrianglePack8, t_max: f32) -> Hits8 {
+        let [kx, ky, kz] = ray.k;
+        let [ox, oy, oz] = ray.o;
+        let [sx, sy, sz] = ray.s;
+        // SAFETY: `self` proves AVX2; the loads read exactly the eight floats
+        // of each array (`k` entries are below 3).
+        unsafe {
+            let zero = _mm256_setzero_ps();
+            // Vertices in the sheared frame, as in intersect_watertight.
+            let k = [kx % 3, ky % 3, kz % 3];
+            let (ax, ay, az) = shear(&pack[0], k, [ox, oy, oz], [sx, sy]);
+            let (bx, by, bz) = shear(&pack[1], k, [ox, oy, oz], [sx, sy]);
+            let (cx, cy, cz) = shear(&pack[2], k, [ox, oy, oz], [sx, sy]);
+            let mut u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+            let mut v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+            let mut w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+            // A lane can be hit only if its edge functions are all >= 0 or
+            // all <= 0, or one is exactly 0 (the f64 fallback may change
+            // signs). NaN lanes are neither, and miss below too.
+            let on_edge = _mm256_or_ps(
+                _mm256_or_ps(
+                    _mm256_cmp_ps::<_CMP_EQ_OQ>(u, zero),
+                    _mm256_cmp_ps::<_CMP_EQ_OQ>(v, zero),
+                ),
+                _mm256_cmp_ps::<_CMP_EQ_OQ>(w, zero),
+            );
+            let all_ge = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(u, zero),
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero),
+                ),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(w, zero),
+            );
+            let all_le = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(u, zero),
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(v, zero),
+                ),
+                _mm256_cmp_ps::<_CMP_LE_OQ>(w, zero),
+            );
+            if _mm256_movemask_ps(_mm256_or_ps(_mm256_or_ps(all_ge, all_le), on_edge)) == 0 {
+                return Hits8 {
+                    mask: 0,
+                    ok: zero,
+                    t: zero,
+                    v: zero,
+                    w: zero,
+                    inv_det: zero,
+                };
+            }
+            let edges = _mm256_movemask_ps(on_edge) as u32;
+            if edges != 0 {
+                (u, v, w) = edge_fallback(edges, [ax, ay, bx, by, cx, cy], [u, v, w]);
+            }
+            let neg = _mm256_or_ps(_mm256_or_ps(lt(u, zero), lt(v, zero)), lt(w, zero));
+            let pos = _mm256_or_ps(_mm256_or_ps(lt(zero, u), lt(zero, v)), lt(zero, w));
+            let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
+            let t_scaled = _mm256_add_ps(
+                _mm256_add_ps(
+                    _mm256_mul_ps(u, _mm256_mul_ps(sz, az)),
+                    _mm256_mul_ps(v, _mm256_mul_ps(sz, bz)),
+                ),
+                _mm256_mul_ps(w, _mm256_mul_ps(sz, cz)),
+            );
+            let inv_det = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+            let t = _mm256_mul_ps(t_scaled, inv_det);
+            let abs_inv_det = _mm256_and_ps(inv_det, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff)));
+            // !mixed & det != 0 (NaN counts as != 0, as in Rust) & 0 < t <
+            // t_max & |1 / det| finite.
+            let ok = _mm256_andnot_ps(
+                _mm256_and_ps(neg, pos),
+                _mm256_and_ps(
+                    _mm256_and_ps(_mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero), lt(zero, t)),
+                    _mm256_and_ps(
+                        lt(t, _mm256_set1_ps(t_max)),
+                        lt(abs_inv_det, _mm256_set1_ps(f32::INFINITY)),
+                    ),
+                ),
+            );
+            Hits8 {
+                mask: _mm256_movemask_ps(ok) as u32,
+                ok,
+                t,
+                v,
+                w,
+                inv_det,
+            }
+        }
+    }
+}
+
+/// One vertex row of a pack moved to the ray's sheared frame: `(x, y, z)`
+/// with `z` not yet scaled.
+///
+/// # Safety
+/// Needs AVX (an [`Avx2`] proves it).
+#[inline(always)]
+unsafe fn shear(
+    v: &[[f32; 8]; 3],
+    [kx, ky, kz]: [usize; 3],
+    [ox, oy, oz]: [__m256; 3],
+    [sx, sy]: [__m256; 2],
+) -> (__m256, __m256, __m256) {
+    // SAFETY: the caller has AVX; `k` entries index the three rows.
+    unsafe {
+        let dz = _mm256_sub_ps(load(&v[kz]), oz);
+        let x = _mm256_sub_ps(_mm256_sub_ps(load(&v[kx]), ox), _mm256_mul_ps(sx, dz));
+        let y = _mm256_sub_ps(_mm256_sub_ps(load(&v[ky]), oy), _mm256_mul_ps(sy, dz));
         (x, y, dz)
-    };
-    let (ax, ay, az) = shear(&pack[0]);
-    let (bx, by, bz) = shear(&pack[1]);
-    let (cx, cy, cz) = shear(&pack[2]);
-    let mut u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
-    let mut v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
-    let mut w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
-    let zero = _mm_setzero_ps();
-    let on_edge = _mm_movemask_ps(_mm_or_ps(
-        _mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)),
-        _mm_cmpeq_ps(w, zero),
-    ));
-    if on_edge != 0 {
-        (u, v, w) = edge_fallback(on_edge, [ax, ay, bx, by, cx, cy], [u, v, w]);
     }
-    let neg = _mm_or_ps(
-        _mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)),
-        _mm_cmplt_ps(w, zero),
-    );
-    let pos = _mm_or_ps(
-        _mm_or_ps(_mm_cmplt_ps(zero, u), _mm_cmplt_ps(zero, v)),
-        _mm_cmplt_ps(zero, w),
-    );
-    let det = _mm_add_ps(_mm_add_ps(u, v), w);
-    let t_scaled = _mm_add_ps(
-        _mm_add_ps(_mm_mul_ps(u, _mm_mul_ps(sz, az)), _mm_mul_ps(v, _mm_mul_ps(sz, bz))),
-        _mm_mul_ps(w, _mm_mul_ps(sz, cz)),
-    );
-    let inv_det = _mm_div_ps(_mm_set1_ps(1.0), det);
-    let t = _mm_mul_ps(t_scaled, inv_det);
-    let abs_inv_det = _mm_and_ps(inv_det, _mm_castsi128_ps(_mm_set1_epi32(0x7fff_ffff)));
-    // !mixed & det != 0 (NaN counts as != 0, as in Rust) & 0 < t < t_max &
-    // |1 / det| finite.
-    let ok = _mm_andnot_ps(
-        _mm_and_ps(neg, pos),
-        _mm_and_ps(
-            _mm_and_ps(_mm_cmpneq_ps(det, zero), _mm_cmplt_ps(zero, t)),
-            _mm_and_ps(
-                _mm_cmplt_ps(t, _mm_set1_ps(t_max)),
-                _mm_cmplt_ps(abs_inv_det, _mm_set1_ps(f32::INFINITY)),
-            ),
-        ),
-    );
-    Hits4 {
-        mask: _mm_movemask_ps(ok) as u32,
-        t,
-        v,
-        w,
-        inv_det,
-    }
+}
+
+/// Lanes where `a < b` (false where either is NaN).
+///
+/// # Safety
+/// Needs AVX (an [`Avx2`] proves it).
+#[inline(always)]
+unsafe fn lt(a: __m256, b: __m256) -> __m256 {
+    // SAFETY: the caller has AVX.
+    unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(a, b) }
 }
 
 /// The edge functions recomputed in f64 on the lanes of `on_edge` (kept out
 /// of line: a ray rarely meets an edge or vertex exactly).
 #[inline(never)]
-#[target_feature(enable = "sse2")]
-fn edge_fallback(on_edge: i32, xy: [__m128; 6], uvw: [__m128; 3]) -> (__m128, __m128, __m128) {
-    let [ax, ay, bx, by, cx, cy] = xy.map(|x| store4(x));
-    let [mut u, mut v, mut w] = uvw.map(|x| store4(x));
-    for l in 0..4 {
-        if on_edge & (1 << l) != 0 {
-            u[l] = edge_f64(cx[l], by[l], cy[l], bx[l]);
-            v[l] = edge_f64(ax[l], cy[l], ay[l], cx[l]);
-            w[l] = edge_f64(bx[l], ay[l], by[l], ax[l]);
+#[target_feature(enable = "avx2,fma")]
+fn edge_fallback(on_edge: u32, xy: [__m256; 6], uvw: [__m256; 3]) -> (__m256, __m256, __m256) {
+    // SAFETY: this function is compiled for AVX2 and only called from code
+    // that an `Avx2` proof let run; loads and stores move exactly eight
+    // floats.
+    unsafe {
+        let [ax, ay, bx, by, cx, cy] = xy.map(|x| store(x));
+        let [mut u, mut v, mut w] = uvw.map(|x| store(x));
+        for l in 0..8 {
+            if on_edge & (1 << l) != 0 {
+                u[l] = edge_f64(cx[l], by[l], cy[l], bx[l]);
+                v[l] = edge_f64(ax[l], cy[l], ay[l], cx[l]);
+                w[l] = edge_f64(bx[l], ay[l], by[l], ax[l]);
+            }
         }
+        (load(&u), load(&v), load(&w))
     }
-    (load4(&u), load4(&v), load4(&w))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::wide::Portable;
-    use lucent_geom::{Pcg32, TriangleTest, Vec3};
+    use lucent_geom::{Pcg32, Vec3};
 
-    /// The SSE pack test equals the portable four-lane test bit for bit
+    /// The AVX2 pack test equals the portable eight-lane test bit for bit
     /// (mask, and distance and barycentrics of every lane hit), and so does
     /// its nearest lane: random triangles, triangles sharing a vertex that
     /// half the rays aim at exactly (the f64 edge fallback), degenerate and
     /// NaN lanes, finite, zero and NaN `t_max`.
     #[test]
     fn pack_test_matches_the_portable_one_bit_for_bit() {
+        let Some(avx2) = Avx2::detect() else {
+            eprintln!("no AVX2 here: nothing to compare");
+            return;
+        };
         let mut rng = Pcg32::new(17, 5);
         let mut p = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
         let bits = |h: Option<(usize, TriangleHit)>| h.map(|(l, h)| (l, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()));
-        let (mut hits, mut edges) = (0, 0);
+        let (mut hits, mut edges, mut early) = (0, 0, 0);
         for i in 0..20_000 {
             let shared = p();
-            let mut tris = [
-                [p(), p(), p()],
-                [shared, p(), p()],
-                [shared, p(), p()],
-                [p(), shared, p()],
-            ];
+            let mut tris: [[Vec3; 3]; 8] = std::array::from_fn(|l| match l {
+                1 | 2 | 5 => [shared, p(), p()],
+                3 | 6 => [p(), shared, p()],
+                _ => [p(), p(), p()],
+            });
             match i % 5 {
                 1 => tris[3] = [shared, shared, p()],
                 2 => tris[0][1] = Vec3::new(f32::NAN, 0.0, 0.0),
@@ -378,7 +421,7 @@ mod tests {
                 4 => tris[1] = [tris[0][0], tris[0][1], tris[0][0] + tris[0][1] - tris[0][2]],
                 _ => {}
             }
-            let mut pack = [[[0.0f32; 4]; 3]; 3];
+            let mut pack = [[[0.0f32; 8]; 3]; 3];
             for (l, tri) in tris.iter().enumerate() {
                 for vtx in 0..3 {
                     for axis in 0..3 {
@@ -387,27 +430,48 @@ mod tests {
                 }
             }
             let origin = p() * 4.0;
-            let target = if i % 2 == 0 { shared } else { p() * 0.5 };
+            let target = match i % 3 {
+                0 => shared,
+                1 => p() * 0.5,
+                // Far off to the side: packs that leave early.
+                _ => p() + Vec3::splat(30.0),
+            };
             let ray = Ray::new(origin, target - origin);
             let prepared = PreparedRay::new(&ray, TriangleTest::Watertight);
-            let sse = Ray4::new(&prepared);
+            let ray8 = avx2.prepare(&ray, TriangleTest::Watertight);
             let t_max = [f32::INFINITY, 2.0, 0.0, f32::NAN][i % 4];
-            let portable = prepared.intersect4_lanes(&pack, t_max);
-            let vector = sse.hits(&pack, t_max);
+            let portable = prepared.intersect_lanes(&pack, t_max);
+            let vector = avx2.hits(&ray8, &pack, t_max);
             assert_eq!(portable.mask, vector.mask, "{ray:?} {tris:?}");
-            for l in 0..4 {
+            for l in 0..8 {
                 assert_eq!(
                     portable.get(l).map(|h| [h.t, h.u, h.v].map(f32::to_bits)),
                     vector.get(l).map(|h| [h.t, h.u, h.v].map(f32::to_bits)),
                     "lane {l}: {ray:?} {tris:?}"
                 );
             }
-            assert_eq!(bits(portable.nearest()), bits(sse.nearest(&pack, t_max)));
-            assert_eq!(portable.mask != 0, sse.any(&pack, t_max));
+            assert_eq!(bits(portable.nearest()), bits(avx2.nearest(&ray8, &pack, t_max)));
+            assert_eq!(portable.mask != 0, avx2.any(&ray8, &pack, t_max));
             hits += portable.mask.count_ones();
-            edges += usize::from(i % 2 == 0 && portable.mask.count_ones() > 1);
+            edges += usize::from(i % 3 == 0 && portable.mask.count_ones() > 1);
+            let h = avx2.hits8(&ray8, &pack, f32::INFINITY);
+            early += usize::from(h.mask == 0 && h.t.eq_zero());
         }
-        assert!(hits > 5000 && edges > 100, "too few hits to compare: {hits}, {edges}");
+        assert!(
+            hits > 10_000 && edges > 100 && early > 1000,
+            "too few cases: {hits}, {edges}, {early}"
+        );
+    }
+
+    trait EqZero {
+        fn eq_zero(self) -> bool;
+    }
+
+    impl EqZero for __m256 {
+        fn eq_zero(self) -> bool {
+            // SAFETY: only called where the test found AVX2.
+            unsafe { store(self) }.iter().all(|x| x.to_bits() == 0)
+        }
     }
 
     /// The AVX2 box test equals the portable one, bit for bit, on random

@@ -9,7 +9,7 @@
 //! - [`MeshBvh`]: one [`TriMesh`]: the binary tree collapsed into an 8-wide
 //!   tree whose nodes keep their children's boxes as structure-of-arrays,
 //!   walked nearest child first (largest child first for any hit), with the
-//!   leaves' triangles copied into packs of four that one vectorised test
+//!   leaves' triangles copied into packs of eight that one vectorised test
 //!   checks at once. The triangle test is watertight (Woop, Benthin and Wald
 //!   2013) unless Moller-Trumbore is picked ([`lucent_geom::TriangleTest`]);
 //!   the closest hit's distance is recomputed in f64. Closest-hit, any-hit
@@ -18,13 +18,13 @@
 //!   shared [`MeshBvh`]s, each mesh stored once), collapsed to 8 wide and
 //!   walked like a mesh's tree.
 //!
-//! The vector code is plain safe Rust over `[f32; 4]` and `[f32; 8]` lanes
-//! that the compiler vectorises, except one module, `kernel` (x86-64 only):
-//! the eight-box test in AVX2 intrinsics, chosen at run time where the
-//! processor has AVX2 and FMA, and the four-triangle watertight test in SSE
-//! (every x86-64 has it), both switched by [`MeshBvh::with_vector_kernel`]
-//! and checked bit for bit against the portable code. It holds this crate's
-//! only `unsafe` code.
+//! The portable code is plain safe Rust over `[f32; 8]` lanes, except one
+//! module, `kernel` (x86-64 only): the eight-box test and the
+//! eight-triangle watertight test in AVX2 intrinsics, chosen at run time
+//! where the processor has AVX2 and FMA (a whole query is then compiled for
+//! those features), switched by [`MeshBvh::with_vector_kernel`] and checked
+//! bit for bit against the portable code. It holds this crate's only
+//! `unsafe` code.
 //!
 //! Invariants: no IO, no panics on data (empty, degenerate, NaN and infinite
 //! input is tolerated and simply never hit), no allocation per ray (traversal

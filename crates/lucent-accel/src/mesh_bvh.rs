@@ -1,10 +1,13 @@
 //! A BVH over one triangle mesh (the bottom level).
 
-use crate::wide::{Tally, WideBvh, leaf_entry};
+use crate::wide::{BoxTest, Leaves, Portable, Query, Tally, WideBvh, leaf_entry};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{
-    PackHits, PreparedRay, Ray, TriangleHit, TrianglePack4, TriangleTest, lane_triangle, plane_distance,
+    PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, lane_triangle, plane_distance,
 };
+
+/// Triangles per pack: a leaf's triangles are tested eight at a time.
+pub(crate) const LANES: usize = 8;
 
 /// A ray hit on a mesh: distance, barycentrics and the triangle's index in
 /// the mesh's input order.
@@ -28,7 +31,7 @@ pub struct TraversalCounts {
     pub rays: u64,
     /// 8-wide nodes whose children's boxes were tested.
     pub nodes: u64,
-    /// Packs of four triangles tested.
+    /// Packs of eight triangles tested.
     pub packs: u64,
 }
 
@@ -51,72 +54,151 @@ impl Tally for TraversalCounts {
     }
 }
 
-/// Four triangles of a leaf in SoA form with their ids (`u32::MAX` marks an
-/// unused lane, whose vertices are NaN).
+/// Eight triangles of a leaf in SoA form with their ids (`u32::MAX` marks
+/// an unused lane, whose vertices are NaN).
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Pack {
-    v: TrianglePack4,
-    prim: [u32; 4],
+#[repr(C, align(32))]
+pub(crate) struct Pack {
+    pub(crate) v: TrianglePack8,
+    pub(crate) prim: [u32; LANES],
 }
 
 const EMPTY_PACK: Pack = Pack {
-    v: [[[f32::NAN; 4]; 3]; 3],
-    prim: [u32::MAX; 4],
+    v: [[[f32::NAN; LANES]; 3]; 3],
+    prim: [u32::MAX; LANES],
 };
 
-/// A ray prepared for the leaves' pack tests: the portable four-lane test,
-/// or (x86-64, watertight test, vector kernel on) the SSE one of
-/// `crate::kernel`, which gives the same answers bit for bit.
-#[derive(Clone, Copy, Debug)]
-enum LeafRay {
-    Portable(PreparedRay),
-    #[cfg(target_arch = "x86_64")]
-    Sse(crate::kernel::Ray4),
+/// How a query tests a leaf's packs: the per-ray constants, made once per
+/// query, and the three questions traversal asks of a pack. The portable
+/// tests ([`PortableLeaf`]) and, on x86-64, the AVX2 ones of
+/// `crate::kernel` answer alike, bit for bit.
+pub(crate) trait LeafTest: Copy {
+    /// The ray prepared for this test.
+    type Ray: Copy;
+    /// `ray` prepared for `test`.
+    fn prepare(self, ray: &Ray, test: TriangleTest) -> Self::Ray;
+    /// The nearest lane hit with `0 < t < t_max` (the lowest lane among
+    /// equals) and its hit.
+    fn nearest(self, ray: &Self::Ray, pack: &TrianglePack8, t_max: f32) -> Option<(usize, TriangleHit)>;
+    /// Whether any lane is hit with `0 < t < t_max`.
+    fn any(self, ray: &Self::Ray, pack: &TrianglePack8, t_max: f32) -> bool;
+    /// Every lane's answer.
+    fn hits(self, ray: &Self::Ray, pack: &TrianglePack8, t_max: f32) -> PackHits<LANES>;
 }
 
-impl LeafRay {
-    #[inline(always)]
-    fn new(ray: &Ray, test: TriangleTest, simd: bool) -> Self {
-        let prepared = PreparedRay::new(ray, test);
-        #[cfg(target_arch = "x86_64")]
-        if simd {
-            return LeafRay::Sse(crate::kernel::Ray4::new(&prepared));
-        }
-        let _ = simd;
-        LeafRay::Portable(prepared)
-    }
+/// The portable pack tests: [`PreparedRay::intersect_lanes`], for either
+/// triangle test.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PortableLeaf;
+
+impl LeafTest for PortableLeaf {
+    type Ray = PreparedRay;
 
     #[inline(always)]
-    fn nearest(&self, pack: &TrianglePack4, t_max: f32) -> Option<(usize, TriangleHit)> {
-        match self {
-            LeafRay::Portable(r) => r.intersect4_lanes(pack, t_max).nearest(),
-            #[cfg(target_arch = "x86_64")]
-            LeafRay::Sse(r) => r.nearest(pack, t_max),
-        }
+    fn prepare(self, ray: &Ray, test: TriangleTest) -> PreparedRay {
+        PreparedRay::new(ray, test)
     }
-
     #[inline(always)]
-    fn any(&self, pack: &TrianglePack4, t_max: f32) -> bool {
-        match self {
-            LeafRay::Portable(r) => r.intersect4_lanes(pack, t_max).mask != 0,
-            #[cfg(target_arch = "x86_64")]
-            LeafRay::Sse(r) => r.any(pack, t_max),
-        }
+    fn nearest(self, ray: &PreparedRay, pack: &TrianglePack8, t_max: f32) -> Option<(usize, TriangleHit)> {
+        ray.intersect_lanes(pack, t_max).nearest()
     }
-
     #[inline(always)]
-    fn hits(&self, pack: &TrianglePack4, t_max: f32) -> PackHits {
-        match self {
-            LeafRay::Portable(r) => r.intersect4_lanes(pack, t_max),
-            #[cfg(target_arch = "x86_64")]
-            LeafRay::Sse(r) => r.hits(pack, t_max),
+    fn any(self, ray: &PreparedRay, pack: &TrianglePack8, t_max: f32) -> bool {
+        ray.intersect_lanes(pack, t_max).mask != 0
+    }
+    #[inline(always)]
+    fn hits(self, ray: &PreparedRay, pack: &TrianglePack8, t_max: f32) -> PackHits<LANES> {
+        ray.intersect_lanes(pack, t_max)
+    }
+}
+
+/// The leaves of a closest-hit walk: the nearest hit so far, as (slot =
+/// `LANES * pack + lane`, hit).
+struct ClosestLeaves<'a, L: LeafTest> {
+    packs: &'a [Pack],
+    leaves: L,
+    ray: L::Ray,
+    best: Option<(usize, MeshHit)>,
+}
+
+impl<L: LeafTest> Leaves for &mut ClosestLeaves<'_, L> {
+    #[inline(always)]
+    fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool {
+        for idx in first..first + count {
+            let Some(pack) = self.packs.get(idx) else { break };
+            if let Some((lane, h)) = self.leaves.nearest(&self.ray, &pack.v, *t_bound) {
+                *t_bound = h.t;
+                let prim = pack.prim[lane % LANES];
+                self.best = Some((
+                    idx * LANES + lane,
+                    MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim,
+                    },
+                ));
+            }
         }
+        false
+    }
+}
+
+/// The leaves of an any-hit walk.
+struct AnyLeaves<'a, L: LeafTest> {
+    packs: &'a [Pack],
+    leaves: L,
+    ray: L::Ray,
+    t_max: f32,
+}
+
+impl<L: LeafTest> Leaves for AnyLeaves<'_, L> {
+    #[inline(always)]
+    fn visit(&mut self, first: usize, count: usize, _: &mut f32) -> bool {
+        for pack in self.packs.get(first..first + count).unwrap_or_default() {
+            if self.leaves.any(&self.ray, &pack.v, self.t_max) {
+                return true;
+            }
+        }
+        false
+    }
+}
+
+/// The leaves of an all-hits walk, each hit handed to `visit`.
+struct EachLeaves<'a, L: LeafTest, V> {
+    packs: &'a [Pack],
+    leaves: L,
+    ray: L::Ray,
+    t_max: f32,
+    visit: V,
+}
+
+impl<L: LeafTest, V: FnMut(MeshHit) -> bool> Leaves for EachLeaves<'_, L, V> {
+    #[inline(always)]
+    fn visit(&mut self, first: usize, count: usize, _: &mut f32) -> bool {
+        for pack in self.packs.get(first..first + count).unwrap_or_default() {
+            let hits = self.leaves.hits(&self.ray, &pack.v, self.t_max);
+            for lane in 0..LANES {
+                if let Some(h) = hits.get(lane) {
+                    let hit = MeshHit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: pack.prim[lane],
+                    };
+                    if (self.visit)(hit) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
     }
 }
 
 /// A BVH over one mesh's triangles, traversed as a 8-wide tree. Each leaf's
-/// triangles are copied into packs of four in structure-of-arrays form, so
-/// one vectorised test checks four triangles.
+/// triangles are copied into packs of eight in structure-of-arrays form, so
+/// one vectorised test checks eight triangles.
 ///
 /// Rays are tested against triangles with the watertight test unless
 /// [`MeshBvh::with_triangle_test`] picks another.
@@ -130,9 +212,56 @@ pub struct MeshBvh {
     test: TriangleTest,
     /// Whether the vector kernels are on ([`MeshBvh::with_vector_kernel`]).
     vector: bool,
-    /// Whether packs are tested with the SSE kernel (x86-64, watertight
-    /// test, vector kernels on).
-    simd_packs: bool,
+}
+
+/// The closest-hit query, run through [`MeshBvh::run`].
+struct Closest<'a, T> {
+    mesh: &'a MeshBvh,
+    ray: &'a Ray,
+    t_max: f32,
+    tally: &'a mut T,
+}
+
+impl<T: Tally> Query for Closest<'_, T> {
+    type Output = Option<MeshHit>;
+    #[inline(always)]
+    fn run<B: BoxTest, L: LeafTest>(self, boxes: B, leaves: L) -> Option<MeshHit> {
+        self.mesh
+            .intersect_with(boxes, leaves, self.ray, self.t_max, self.tally)
+    }
+}
+
+/// The any-hit query, run through [`MeshBvh::run`].
+struct Any<'a, T> {
+    mesh: &'a MeshBvh,
+    ray: &'a Ray,
+    t_max: f32,
+    tally: &'a mut T,
+}
+
+impl<T: Tally> Query for Any<'_, T> {
+    type Output = bool;
+    #[inline(always)]
+    fn run<B: BoxTest, L: LeafTest>(self, boxes: B, leaves: L) -> bool {
+        self.mesh.occluded_with(boxes, leaves, self.ray, self.t_max, self.tally)
+    }
+}
+
+/// The all-hits walk, run through [`MeshBvh::run`].
+struct Each<'a, V> {
+    mesh: &'a MeshBvh,
+    ray: &'a Ray,
+    t_max: f32,
+    visit: V,
+}
+
+impl<V: FnMut(MeshHit) -> bool> Query for Each<'_, V> {
+    type Output = bool;
+    #[inline(always)]
+    fn run<B: BoxTest, L: LeafTest>(self, boxes: B, leaves: L) -> bool {
+        self.mesh
+            .for_each_hit_with(boxes, leaves, self.ray, self.t_max, self.visit)
+    }
 }
 
 impl MeshBvh {
@@ -144,13 +273,13 @@ impl MeshBvh {
             .map(|t| Aabb::from_points(mesh.triangle(t)))
             .collect();
         let bvh = Bvh::build(&boxes, params);
-        let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 3 + 1);
-        // Leaves hold at most 16 primitives (four packs), as a leaf entry
-        // can address.
+        let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 6 + 1);
+        // Leaves hold at most 16 primitives (two packs), well within what
+        // a leaf entry can address.
         let wide = WideBvh::from_binary(&bvh, |first, count| {
             let start = packs.len();
             let slots = &bvh.prim_indices[first as usize..(first + count) as usize];
-            for chunk in slots.chunks(4) {
+            for chunk in slots.chunks(LANES) {
                 let mut pack = EMPTY_PACK;
                 for (lane, &prim) in chunk.iter().enumerate() {
                     for (vtx, p) in mesh.triangle(prim as usize).into_iter().enumerate() {
@@ -172,28 +301,19 @@ impl MeshBvh {
             bounds: bvh.bounds(),
             test: TriangleTest::default(),
             vector: true,
-            simd_packs: false,
         }
-        .with_simd_packs()
-    }
-
-    /// Sets `simd_packs` from the test and the vector-kernel switch.
-    fn with_simd_packs(mut self) -> Self {
-        self.simd_packs = cfg!(target_arch = "x86_64") && self.test == TriangleTest::Watertight && self.vector;
-        self
     }
 
     /// The same tree using `test` for rays against triangles.
     pub fn with_triangle_test(mut self, test: TriangleTest) -> Self {
         self.test = test;
-        self.with_simd_packs()
+        self
     }
 
     /// The same tree walked with the vector kernels (`true`, the default:
-    /// the AVX2 box test where the processor has it, and on x86-64 the SSE
-    /// test of four watertight triangles) or with the portable code only
-    /// (`false`). Both find the same hits, bit for bit; only the speed
-    /// differs.
+    /// the AVX2 box test and eight-triangle watertight test where the
+    /// processor has AVX2 and FMA) or with the portable code only (`false`).
+    /// Both find the same hits, bit for bit; only the speed differs.
     ///
     /// ```
     /// use lucent_accel::{BuildParams, MeshBvh};
@@ -207,13 +327,27 @@ impl MeshBvh {
     pub fn with_vector_kernel(mut self, on: bool) -> Self {
         self.wide.set_simd(on);
         self.vector = on;
-        self.with_simd_packs()
+        self
     }
 
     /// Whether queries run the AVX2 box test (x86-64 processors with AVX2
     /// and FMA, unless [`MeshBvh::with_vector_kernel`] turned it off).
     pub fn vector_kernel(&self) -> bool {
         self.wide.simd()
+    }
+
+    /// Runs `q` with the kernels this tree uses.
+    #[inline(always)]
+    fn run<Q: Query>(&self, q: Q) -> Q::Output {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = self.wide.simd {
+            return if self.test == TriangleTest::Watertight {
+                avx2.run(q)
+            } else {
+                avx2.run_boxes(q)
+            };
+        }
+        q.run(Portable, PortableLeaf)
     }
 
     /// The ray-triangle test in use.
@@ -244,21 +378,6 @@ impl MeshBvh {
     /// Number of 8-wide nodes.
     pub fn n_wide_nodes(&self) -> usize {
         self.wide.n_nodes()
-    }
-
-    /// Nearest hit among the pack's four triangles (the lowest lane among
-    /// equals, as a lane-by-lane loop would find).
-    #[inline(always)]
-    fn hit_pack(&self, ray: &LeafRay, idx: usize, t_max: f32) -> Option<(usize, MeshHit)> {
-        let pack = self.packs.get(idx)?;
-        let (lane, h) = ray.nearest(&pack.v, t_max)?;
-        let hit = MeshHit {
-            t: h.t,
-            u: h.u,
-            v: h.v,
-            prim: pack.prim[lane & 3],
-        };
-        Some((idx * 4 + lane, hit))
     }
 
     /// Closest hit with `0 < t < t_max`. The triangle tests pick the hit;
@@ -293,35 +412,44 @@ impl MeshBvh {
 
     #[inline(always)]
     fn intersect_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> Option<MeshHit> {
-        // The walk reads the caller's ray, not the prepared copy: reading
-        // the copy's fields back as wider loads right after they were
-        // stored one by one stalls store-to-load forwarding. The copy is
-        // made at the first leaf (many rays reach none).
-        let mut prepared = None;
-        let mut best = None;
-        let leaf = |first: usize, count: usize, t_bound: &mut f32| {
-            let prepared = prepared.get_or_insert_with(|| LeafRay::new(ray, self.test, self.simd_packs));
-            for idx in first..first + count {
-                if let Some(hit) = self.hit_pack(prepared, idx, *t_bound) {
-                    *t_bound = hit.1.t;
-                    best = Some(hit);
-                }
-            }
-            false
+        self.run(Closest {
+            mesh: self,
+            ray,
+            t_max,
+            tally,
+        })
+    }
+
+    /// The closest-hit query with box test `B` and pack tests `L`.
+    #[inline(always)]
+    fn intersect_with<B: BoxTest, L: LeafTest, T: Tally>(
+        &self,
+        boxes: B,
+        leaves: L,
+        ray: &Ray,
+        t_max: f32,
+        tally: &mut T,
+    ) -> Option<MeshHit> {
+        let mut visit = ClosestLeaves {
+            packs: &self.packs,
+            leaves,
+            ray: leaves.prepare(ray, self.test),
+            best: None,
         };
-        self.wide.walk::<true, _, _>(ray, t_max, leaf, tally);
-        best.map(|(slot, hit)| self.refine(ray, slot, hit, t_max))
+        self.wide
+            .walk_sized::<true, B, _, T>(boxes, ray, t_max, &mut visit, tally);
+        visit.best.map(|(slot, hit)| self.refine(ray, slot, hit, t_max))
     }
 
     /// The hit with its distance recomputed in f64 when that lies in
     /// `(0, t_max)` too (it does but where the f32 value sits at a bound,
-    /// and then the f32 value is kept). `slot` is `4 * pack + lane`.
+    /// and then the f32 value is kept). `slot` is `LANES * pack + lane`.
     #[inline]
     fn refine(&self, ray: &Ray, slot: usize, hit: MeshHit, t_max: f32) -> MeshHit {
         let t = self
             .packs
-            .get(slot / 4)
-            .and_then(|p| plane_distance(ray, lane_triangle(&p.v, slot % 4)))
+            .get(slot / LANES)
+            .and_then(|p| plane_distance(ray, lane_triangle(&p.v, slot % LANES)))
             .filter(|t| *t > 0.0 && *t < t_max)
             .unwrap_or(hit.t);
         MeshHit { t, ..hit }
@@ -334,51 +462,74 @@ impl MeshBvh {
 
     #[inline(always)]
     fn occluded_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> bool {
-        let mut prepared = None;
-        let found = |first: usize, count: usize, _: &mut f32| {
-            let prepared = prepared.get_or_insert_with(|| LeafRay::new(ray, self.test, self.simd_packs));
-            self.packs
-                .get(first..first + count)
-                .is_some_and(|packs| packs.iter().any(|p| prepared.any(&p.v, t_max)))
+        self.run(Any {
+            mesh: self,
+            ray,
+            t_max,
+            tally,
+        })
+    }
+
+    /// The any-hit query with box test `B` and pack tests `L`.
+    #[inline(always)]
+    fn occluded_with<B: BoxTest, L: LeafTest, T: Tally>(
+        &self,
+        boxes: B,
+        leaves: L,
+        ray: &Ray,
+        t_max: f32,
+        tally: &mut T,
+    ) -> bool {
+        let visit = AnyLeaves {
+            packs: &self.packs,
+            leaves,
+            ray: leaves.prepare(ray, self.test),
+            t_max,
         };
-        self.wide.walk::<false, _, _>(ray, t_max, found, tally)
+        self.wide.walk_sized::<false, B, _, T>(boxes, ray, t_max, visit, tally)
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
     /// order, until it returns `true`. Returns whether it was stopped.
-    pub fn for_each_hit(&self, ray: &Ray, t_max: f32, mut visit: impl FnMut(MeshHit) -> bool) -> bool {
-        let prepared = LeafRay::new(ray, self.test, self.simd_packs);
-        let each = |first: usize, count: usize, _: &mut f32| {
-            for pack in self.packs.get(first..first + count).unwrap_or_default() {
-                let hits = prepared.hits(&pack.v, t_max);
-                for lane in 0..4 {
-                    if let Some(h) = hits.get(lane) {
-                        let hit = MeshHit {
-                            t: h.t,
-                            u: h.u,
-                            v: h.v,
-                            prim: pack.prim[lane],
-                        };
-                        if visit(hit) {
-                            return true;
-                        }
-                    }
-                }
-            }
-            false
+    pub fn for_each_hit(&self, ray: &Ray, t_max: f32, visit: impl FnMut(MeshHit) -> bool) -> bool {
+        self.run(Each {
+            mesh: self,
+            ray,
+            t_max,
+            visit,
+        })
+    }
+
+    /// The all-hits walk with box test `B` and pack tests `L`.
+    #[inline(always)]
+    fn for_each_hit_with<B: BoxTest, L: LeafTest>(
+        &self,
+        boxes: B,
+        leaves: L,
+        ray: &Ray,
+        t_max: f32,
+        visit: impl FnMut(MeshHit) -> bool,
+    ) -> bool {
+        let visit = EachLeaves {
+            packs: &self.packs,
+            leaves,
+            ray: leaves.prepare(ray, self.test),
+            t_max,
+            visit,
         };
-        self.wide.walk::<false, _, _>(ray, t_max, each, &mut ())
+        self.wide
+            .walk_sized::<false, B, _, ()>(boxes, ray, t_max, visit, &mut ())
     }
 
     /// The closest hit found by testing every triangle one at a time with
     /// the scalar test, with no tree: the slow, safe reference that the
-    /// tree's four-lane answers are checked against. Among equally close
+    /// tree's eight-lane answers are checked against. Among equally close
     /// hits the lowest triangle index wins.
     pub fn intersect_brute_force(&self, ray: &Ray, t_max: f32) -> Option<MeshHit> {
         let ray = PreparedRay::new(ray, self.test);
         let mut best: Option<(usize, MeshHit)> = None;
         for (i, pack) in self.packs.iter().enumerate() {
-            for lane in 0..4 {
+            for lane in 0..LANES {
                 let prim = pack.prim[lane];
                 if prim == u32::MAX {
                     continue;
@@ -392,7 +543,7 @@ impl MeshBvh {
                         v: h.v,
                         prim,
                     };
-                    best = Some((4 * i + lane, hit));
+                    best = Some((LANES * i + lane, hit));
                 }
             }
         }
@@ -659,7 +810,7 @@ mod tests {
             let binary = Bvh::build(&boxes, &params);
             let bvh = MeshBvh::build(&mesh, &params);
             crate::wide::check(&bvh.wide, bvh.packs.len(), |p| {
-                (0..4)
+                (0..LANES)
                     .filter(|&l| bvh.packs[p].prim[l] != u32::MAX)
                     .fold(Aabb::EMPTY, |b, l| {
                         b.union(Aabb::from_points(lane_triangle(&bvh.packs[p].v, l)))

@@ -7,11 +7,11 @@
 //! checks all eight children with eight-lane vector instructions. Nodes are
 //! stored depth first, a node's interior children side by side.
 //!
-//! The walk in this file is plain safe Rust (the compiler vectorises its
-//! lane loops: two SSE halves on x86-64, NEON on aarch64). It is the
-//! reference that [`crate::kernel`]'s AVX2 walk follows step for step: the
-//! same slab arithmetic, the same child order, the same stack discipline, so
-//! the two find the same hit, bit for bit.
+//! The walk in this file is plain safe Rust, generic over the box test
+//! ([`BoxTest`]: the portable [`SlabRay::test`], whose lane loops the
+//! compiler vectorises, or [`crate::kernel`]'s AVX2 test, which follows it
+//! step for step) and over what it does at a leaf ([`Leaves`]), so both box
+//! tests find the same hit, bit for bit.
 //!
 //! Closest-hit traversal goes to the nearest entered child (the lowest lane
 //! among equal entry distances) and pushes the others in lane order; a
@@ -81,6 +81,16 @@ pub(crate) struct WideBvh {
     /// The AVX2 kernel, where the machine has it.
     #[cfg(target_arch = "x86_64")]
     pub(crate) simd: Option<crate::kernel::Avx2>,
+}
+
+/// A query run with a box test and pack tests picked once for it (the
+/// portable ones, or on x86-64 the AVX2 ones, through which the whole query
+/// is compiled for AVX2: `crate::kernel::Avx2::run`).
+pub(crate) trait Query {
+    /// What the query answers.
+    type Output;
+    /// Runs the query with box test `B` and pack tests `L`.
+    fn run<B: BoxTest, L: crate::mesh_bvh::LeafTest>(self, boxes: B, leaves: L) -> Self::Output;
 }
 
 /// A test of a node's eight child boxes: entry distances and the mask of
@@ -286,17 +296,21 @@ impl WideBvh {
     #[inline]
     pub(crate) fn walk<const ORDERED: bool, F, T>(&self, ray: &Ray, t_max: f32, leaf: F, tally: &mut T) -> bool
     where
-        F: FnMut(usize, usize, &mut f32) -> bool,
+        F: Leaves,
         T: Tally,
     {
-        if !traceable(ray) {
-            return false;
-        }
+        let walk = Walk::<ORDERED, F, T> {
+            wide: self,
+            ray,
+            t_max,
+            leaf,
+            tally,
+        };
         #[cfg(target_arch = "x86_64")]
         if let Some(avx2) = self.simd {
-            return avx2.walk::<ORDERED, F, T>(self, ray, t_max, leaf, tally);
+            return avx2.run(walk);
         }
-        self.walk_sized::<ORDERED, Portable, F, T>(Portable, ray, t_max, leaf, tally)
+        walk.run(Portable, crate::mesh_bvh::PortableLeaf)
     }
 
     /// Turns the vector kernel off (`false`, the portable walk only) or back
@@ -332,7 +346,7 @@ impl WideBvh {
     ) -> bool
     where
         B: BoxTest,
-        F: FnMut(usize, usize, &mut f32) -> bool,
+        F: Leaves,
         T: Tally,
     {
         if self.depth <= SMALL_DEPTH {
@@ -356,9 +370,12 @@ impl WideBvh {
     ) -> bool
     where
         B: BoxTest,
-        F: FnMut(usize, usize, &mut f32) -> bool,
+        F: Leaves,
         T: Tally,
     {
+        if !traceable(ray) {
+            return false;
+        }
         let slab = SlabRay::new(ray);
         let Some(mut node) = self.nodes.first() else {
             return false;
@@ -413,7 +430,7 @@ impl WideBvh {
             while entry & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(entry);
                 tally.packs(count);
-                if leaf(first, count, &mut t_bound) {
+                if leaf.visit(first, count, &mut t_bound) {
                     return true;
                 }
                 let Some(e) = pop(&stack_t, &stack_e, &mut sp, t_bound) else {
@@ -431,6 +448,28 @@ impl WideBvh {
     }
 }
 
+/// [`WideBvh::walk`] as a [`Query`].
+struct Walk<'a, const ORDERED: bool, F, T> {
+    wide: &'a WideBvh,
+    ray: &'a Ray,
+    t_max: f32,
+    leaf: F,
+    tally: &'a mut T,
+}
+
+impl<const ORDERED: bool, F, T> Query for Walk<'_, ORDERED, F, T>
+where
+    F: Leaves,
+    T: Tally,
+{
+    type Output = bool;
+    #[inline(always)]
+    fn run<B: BoxTest, L: crate::mesh_bvh::LeafTest>(self, boxes: B, _: L) -> bool {
+        self.wide
+            .walk_sized::<ORDERED, B, F, T>(boxes, self.ray, self.t_max, self.leaf, self.tally)
+    }
+}
+
 /// Pops the next stacked entry that can still hold a hit within `t_bound`
 /// (entered no later than it).
 #[inline(always)]
@@ -444,12 +483,30 @@ fn pop<const N: usize>(stack_t: &[f32; N], stack_e: &[u32; N], sp: &mut usize, t
     None
 }
 
+/// What a walk does at a leaf: `visit(first, count, &mut t_bound)` tests
+/// the leaf's run of `count` entries from `first`, may lower `t_bound` (the
+/// walk then skips boxes entered beyond it) and returns `true` to stop the
+/// walk. A closure does (for walks whose leaves call out of line anyway); the
+/// mesh queries implement it on structs, whose always-inlined `visit` lets a
+/// query compiled for AVX2 inline the triangle tests' intrinsics too.
+pub(crate) trait Leaves {
+    /// Tests the leaf's entries `first..first + count`.
+    fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool;
+}
+
+impl<F: FnMut(usize, usize, &mut f32) -> bool> Leaves for F {
+    #[inline(always)]
+    fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool {
+        self(first, count, t_bound)
+    }
+}
+
 /// What a walk counts: nodes tested and packs visited. `()` counts nothing
 /// (and compiles to nothing), so the ordinary queries pay no cost.
 pub(crate) trait Tally {
     /// A node's children were tested.
     fn node(&mut self);
-    /// A leaf of `n` packs of four triangles was visited.
+    /// A leaf of `n` packs of triangles was visited.
     fn packs(&mut self, n: usize);
 }
 

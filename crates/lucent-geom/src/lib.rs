@@ -36,6 +36,6 @@ pub use offset::{offset_ray_origin, offset_ray_origin_scaled};
 pub use ray::Ray;
 pub use rng::{Pcg32, hash_u64};
 pub use triangle::{
-    PackHits, PreparedRay, TriangleHit, TrianglePack4, TriangleTest, edge_f64, intersect_triangle, lane_triangle,
-    plane_distance, triangle_normal,
+    PackHits, PreparedRay, TriangleHit, TrianglePack, TrianglePack4, TrianglePack8, TriangleTest, edge_f64,
+    intersect_triangle, lane_triangle, plane_distance, triangle_normal,
 };

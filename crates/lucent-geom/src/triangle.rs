@@ -203,17 +203,21 @@ impl PreparedRay {
     }
 }
 
-/// Four triangles in structure-of-arrays form, `v[vertex][axis][lane]`, for
-/// [`PreparedRay::intersect4`]. Unused lanes hold NaN vertices, which never
-/// hit.
-pub type TrianglePack4 = [[[f32; 4]; 3]; 3];
+/// `N` triangles in structure-of-arrays form, `v[vertex][axis][lane]`, for
+/// [`PreparedRay::intersect_lanes`]. Unused lanes hold NaN vertices, which
+/// never hit.
+pub type TrianglePack<const N: usize> = [[[f32; N]; 3]; 3];
+
+/// Four triangles in structure-of-arrays form.
+pub type TrianglePack4 = TrianglePack<4>;
+
+/// Eight triangles in structure-of-arrays form (what `lucent-accel`'s leaves
+/// hold).
+pub type TrianglePack8 = TrianglePack<8>;
 
 impl PreparedRay {
-    /// The four triangles of `pack`, each tested as by
-    /// [`PreparedRay::intersect`] with `0 < t < t_max`, with identical
-    /// results: the watertight test runs on four lanes at once (plain lane
-    /// loops that the compiler turns into vector instructions), its rare f64
-    /// fallback lane by lane.
+    /// The triangles of `pack`, each tested as by [`PreparedRay::intersect`]
+    /// with `0 < t < t_max`, with identical results.
     ///
     /// ```
     /// use lucent_geom::{PreparedRay, Ray, TriangleTest, Vec3};
@@ -225,24 +229,25 @@ impl PreparedRay {
     ///     [[0.0, nan, nan, nan], [1.0, nan, nan, nan], [0.0, nan, nan, nan]],
     /// ];
     /// let ray = PreparedRay::new(&Ray::new(Vec3::new(0.25, 0.25, 2.0), -Vec3::Z), TriangleTest::Watertight);
-    /// let hits = ray.intersect4(&pack, f32::INFINITY);
+    /// let hits = ray.intersect_pack(&pack, f32::INFINITY);
     /// assert_eq!(hits[0].map(|h| h.t), Some(2.0));
     /// assert!(hits[1..].iter().all(Option::is_none));
     /// ```
     #[inline(always)]
-    pub fn intersect4(&self, pack: &TrianglePack4, t_max: f32) -> [Option<TriangleHit>; 4] {
-        if self.test == TriangleTest::MollerTrumbore {
-            return self.intersect4_moller_trumbore(pack, t_max);
-        }
-        let hits = self.intersect4_watertight(pack, t_max);
-        [0, 1, 2, 3].map(|l| hits.get(l))
+    pub fn intersect_pack<const N: usize>(&self, pack: &TrianglePack<N>, t_max: f32) -> [Option<TriangleHit>; N] {
+        let hits = self.intersect_lanes(pack, t_max);
+        std::array::from_fn(|l| hits.get(l))
     }
 
-    /// The four triangles of `pack` against this ray, as
-    /// [`PreparedRay::intersect4`] tests them, with the answer kept as four
+    /// The triangles of `pack` against this ray, as
+    /// [`PreparedRay::intersect_pack`] tests them, with the answer kept as
     /// lanes and a mask: the form traversal loops want (the nearest lane is
     /// picked from the distances, barycentrics are divided out for it
-    /// alone).
+    /// alone). The watertight test runs whole-row arithmetic over the lanes,
+    /// the same operations in the same order as
+    /// [`PreparedRay::intersect_watertight`], so every lane's answer is bit
+    /// for bit the scalar test's (vector kernels repeat it, see
+    /// `lucent-accel`); the rare f64 fallback runs lane by lane.
     ///
     /// ```
     /// use lucent_geom::{PreparedRay, Ray, TriangleTest, Vec3};
@@ -253,97 +258,77 @@ impl PreparedRay {
     ///     [[0.0, nan, nan, nan], [1.0, nan, nan, nan], [0.0, nan, nan, nan]],
     /// ];
     /// let ray = PreparedRay::new(&Ray::new(Vec3::new(0.25, 0.25, 2.0), -Vec3::Z), TriangleTest::Watertight);
-    /// let hits = ray.intersect4_lanes(&pack, f32::INFINITY);
+    /// let hits = ray.intersect_lanes(&pack, f32::INFINITY);
     /// assert_eq!(hits.mask, 0b0001);
     /// assert_eq!(hits.nearest().map(|(lane, h)| (lane, h.t)), Some((0, 2.0)));
     /// ```
     #[inline(always)]
-    pub fn intersect4_lanes(&self, pack: &TrianglePack4, t_max: f32) -> PackHits {
+    pub fn intersect_lanes<const N: usize>(&self, pack: &TrianglePack<N>, t_max: f32) -> PackHits<N> {
         if self.test == TriangleTest::MollerTrumbore {
-            return PackHits::from_options(self.intersect4_moller_trumbore(pack, t_max));
+            return self.intersect_lanes_moller_trumbore(pack, t_max);
         }
-        self.intersect4_watertight(pack, t_max)
-    }
-
-    /// The watertight test on four lanes: whole-row arithmetic on `[f32; 4]`
-    /// (which the compiler turns into vector instructions), the same
-    /// operations in the same order as [`PreparedRay::intersect_watertight`],
-    /// so every lane's answer is bit for bit the scalar test's; the rare f64
-    /// fallback runs lane by lane.
-    #[inline(always)]
-    fn intersect4_watertight(&self, pack: &TrianglePack4, t_max: f32) -> PackHits {
         let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.shear;
         let o = self.ray.origin;
         let (ox, oy, oz) = (o[kx], o[ky], o[kz]);
         // Sheared vertex coordinates, as in intersect_watertight.
-        let shear = |vtx: &[[f32; 4]; 3]| shear4(vtx, [kx, ky, kz], [ox, oy, oz], [sx, sy]);
+        let shear = |vtx: &[[f32; N]; 3]| {
+            let dx = map2(vtx[kx % 3], [ox; N], |a, b| a - b);
+            let dy = map2(vtx[ky % 3], [oy; N], |a, b| a - b);
+            let dz = map2(vtx[kz % 3], [oz; N], |a, b| a - b);
+            (map2(dx, dz, |d, z| d - sx * z), map2(dy, dz, |d, z| d - sy * z), dz)
+        };
         let (ax, ay, az) = shear(&pack[0]);
         let (bx, by, bz) = shear(&pack[1]);
         let (cx, cy, cz) = shear(&pack[2]);
-        let mut u = sub4(mul4(cx, by), mul4(cy, bx));
-        let mut v = sub4(mul4(ax, cy), mul4(ay, cx));
-        let mut w = sub4(mul4(bx, ay), mul4(by, ax));
-        let zero = [0.0f32; 4];
-        let on_edge = or4(or4(eq4(u, zero), eq4(v, zero)), eq4(w, zero));
-        let on_edge = bits4(on_edge);
-        if on_edge != 0 {
-            let f = edge_f64;
-            for l in 0..4 {
-                if on_edge & (1 << l) != 0 {
-                    u[l] = f(cx[l], by[l], cy[l], bx[l]);
-                    v[l] = f(ax[l], cy[l], ay[l], cx[l]);
-                    w[l] = f(bx[l], ay[l], by[l], ax[l]);
-                }
+        let edge = |p: [f32; N], q: [f32; N], r: [f32; N], s: [f32; N]| -> [f32; N] {
+            std::array::from_fn(|l| p[l] * q[l] - r[l] * s[l])
+        };
+        let mut u = edge(cx, by, cy, bx);
+        let mut v = edge(ax, cy, ay, cx);
+        let mut w = edge(bx, ay, by, ax);
+        for l in 0..N {
+            if u[l] == 0.0 || v[l] == 0.0 || w[l] == 0.0 {
+                u[l] = edge_f64(cx[l], by[l], cy[l], bx[l]);
+                v[l] = edge_f64(ax[l], cy[l], ay[l], cx[l]);
+                w[l] = edge_f64(bx[l], ay[l], by[l], ax[l]);
             }
         }
-        let neg = or4(or4(lt4(u, zero), lt4(v, zero)), lt4(w, zero));
-        let pos = or4(or4(lt4(zero, u), lt4(zero, v)), lt4(zero, w));
-        let det = add4(add4(u, v), w);
-        let t_scaled = add4(
-            add4(mul4(u, mul4([sz; 4], az)), mul4(v, mul4([sz; 4], bz))),
-            mul4(w, mul4([sz; 4], cz)),
-        );
-        let inv_det = div4([1.0; 4], det);
-        let t = mul4(t_scaled, inv_det);
-        let inf = [f32::INFINITY; 4];
-        let ok = and4(
-            and4(not4(and4(neg, pos)), not4(eq4(det, zero))),
-            and4(and4(lt4(zero, t), lt4(t, [t_max; 4])), lt4(abs4(inv_det), inf)),
-        );
-        let mask = bits4(ok);
-        PackHits { mask, t, v, w, inv_det }
-    }
-}
-
-/// What [`PreparedRay::intersect4_lanes`] found in a pack of four
-/// triangles: bit `l` of `mask` is set when lane `l` is hit, and then
-/// [`PackHits::get`] gives that hit.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PackHits {
-    /// Lanes hit, one bit each (lane 0 is bit 0).
-    pub mask: u32,
-    /// Ray parameter per lane (meaningful where `mask` is set).
-    pub t: [f32; 4],
-    /// Scaled barycentric of the second vertex (times `inv_det`: `u`).
-    pub v: [f32; 4],
-    /// Scaled barycentric of the third vertex (times `inv_det`: `v`).
-    pub w: [f32; 4],
-    /// Reciprocal of the determinant.
-    pub inv_det: [f32; 4],
-}
-
-impl PackHits {
-    fn from_options(hits: [Option<TriangleHit>; 4]) -> PackHits {
         let mut out = PackHits {
             mask: 0,
-            t: [0.0; 4],
-            v: [0.0; 4],
-            w: [0.0; 4],
-            inv_det: [1.0; 4],
+            t: [0.0; N],
+            v,
+            w,
+            inv_det: [0.0; N],
         };
-        for (l, h) in hits.into_iter().enumerate() {
-            if let Some(h) = h {
+        for l in 0..N {
+            let (u, v, w) = (u[l], v[l], w[l]);
+            let mixed = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
+            let det = u + v + w;
+            let t_scaled = u * (sz * az[l]) + v * (sz * bz[l]) + w * (sz * cz[l]);
+            let inv_det = 1.0 / det;
+            let t = t_scaled * inv_det;
+            out.t[l] = t;
+            out.inv_det[l] = inv_det;
+            let ok = !mixed && det != 0.0 && t > 0.0 && t < t_max && inv_det.abs() < f32::INFINITY;
+            out.mask |= u32::from(ok) << l;
+        }
+        out
+    }
+
+    /// [`PreparedRay::intersect_lanes`] for Moller-Trumbore: lane by lane,
+    /// kept out of line so the watertight path inlines into traversal loops.
+    #[inline(never)]
+    fn intersect_lanes_moller_trumbore<const N: usize>(&self, pack: &TrianglePack<N>, t_max: f32) -> PackHits<N> {
+        let mut out = PackHits {
+            mask: 0,
+            t: [0.0; N],
+            v: [0.0; N],
+            w: [0.0; N],
+            inv_det: [1.0; N],
+        };
+        for l in 0..N {
+            if let Some(h) = intersect_triangle(&self.ray, lane_triangle(pack, l), t_max) {
                 out.mask |= 1 << l;
                 out.t[l] = h.t;
                 out.v[l] = h.u;
@@ -352,11 +337,36 @@ impl PackHits {
         }
         out
     }
+}
 
-    /// Lane `l`'s hit, `None` where it missed (or `l > 3`).
+/// `f` applied lane by lane to two rows.
+#[inline(always)]
+fn map2<const N: usize>(a: [f32; N], b: [f32; N], f: impl Fn(f32, f32) -> f32) -> [f32; N] {
+    std::array::from_fn(|l| f(a[l], b[l]))
+}
+
+/// What [`PreparedRay::intersect_lanes`] found in a pack of `N` triangles:
+/// bit `l` of `mask` is set when lane `l` is hit, and then
+/// [`PackHits::get`] gives that hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PackHits<const N: usize = 4> {
+    /// Lanes hit, one bit each (lane 0 is bit 0).
+    pub mask: u32,
+    /// Ray parameter per lane (meaningful where `mask` is set).
+    pub t: [f32; N],
+    /// Scaled barycentric of the second vertex (times `inv_det`: `u`).
+    pub v: [f32; N],
+    /// Scaled barycentric of the third vertex (times `inv_det`: `v`).
+    pub w: [f32; N],
+    /// Reciprocal of the determinant.
+    pub inv_det: [f32; N],
+}
+
+impl<const N: usize> PackHits<N> {
+    /// Lane `l`'s hit, `None` where it missed (or `l >= N`).
     #[inline(always)]
     pub fn get(&self, l: usize) -> Option<TriangleHit> {
-        (l < 4 && self.mask & (1 << l) != 0).then(|| TriangleHit {
+        (l < N && self.mask & (1 << l) != 0).then(|| TriangleHit {
             t: self.t[l],
             u: self.v[l] * self.inv_det[l],
             v: self.w[l] * self.inv_det[l],
@@ -367,11 +377,11 @@ impl PackHits {
     #[inline(always)]
     pub fn nearest(&self) -> Option<(usize, TriangleHit)> {
         let mut best: Option<usize> = None;
-        let mut m = self.mask & 0xf;
+        let mut m = self.mask;
         while m != 0 {
             let l = m.trailing_zeros() as usize;
             m &= m - 1;
-            if best.is_none_or(|b| self.t[l] < self.t[b]) {
+            if l < N && best.is_none_or(|b| self.t[l] < self.t[b]) {
                 best = Some(l);
             }
         }
@@ -386,95 +396,10 @@ pub fn edge_f64(p: f32, q: f32, r: f32, s: f32) -> f32 {
     (f64::from(p) * f64::from(q) - f64::from(r) * f64::from(s)) as f32
 }
 
-/// One vertex row of a pack moved to the ray's sheared frame.
-#[inline(always)]
-fn shear4(
-    vtx: &[[f32; 4]; 3],
-    [kx, ky, kz]: [usize; 3],
-    [ox, oy, oz]: [f32; 3],
-    [sx, sy]: [f32; 2],
-) -> ([f32; 4], [f32; 4], [f32; 4]) {
-    let dx = sub4(vtx[kx % 3], [ox; 4]);
-    let dy = sub4(vtx[ky % 3], [oy; 4]);
-    let dz = sub4(vtx[kz % 3], [oz; 4]);
-    (sub4(dx, mul4([sx; 4], dz)), sub4(dy, mul4([sy; 4], dz)), dz)
-}
-
-#[inline(always)]
-fn sub4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]]
-}
-#[inline(always)]
-fn add4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]
-}
-#[inline(always)]
-fn mul4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
-    [a[0] * b[0], a[1] * b[1], a[2] * b[2], a[3] * b[3]]
-}
-#[inline(always)]
-fn div4(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
-    [a[0] / b[0], a[1] / b[1], a[2] / b[2], a[3] / b[3]]
-}
-#[inline(always)]
-fn abs4(a: [f32; 4]) -> [f32; 4] {
-    a.map(f32::abs)
-}
-/// A lane mask: all ones where true, zero where false.
-type Mask4 = [i32; 4];
-#[inline(always)]
-fn lane(b: bool) -> i32 {
-    -i32::from(b)
-}
-#[inline(always)]
-fn eq4(a: [f32; 4], b: [f32; 4]) -> Mask4 {
-    [
-        lane(a[0] == b[0]),
-        lane(a[1] == b[1]),
-        lane(a[2] == b[2]),
-        lane(a[3] == b[3]),
-    ]
-}
-#[inline(always)]
-fn lt4(a: [f32; 4], b: [f32; 4]) -> Mask4 {
-    [
-        lane(a[0] < b[0]),
-        lane(a[1] < b[1]),
-        lane(a[2] < b[2]),
-        lane(a[3] < b[3]),
-    ]
-}
-#[inline(always)]
-fn or4(a: Mask4, b: Mask4) -> Mask4 {
-    [a[0] | b[0], a[1] | b[1], a[2] | b[2], a[3] | b[3]]
-}
-#[inline(always)]
-fn and4(a: Mask4, b: Mask4) -> Mask4 {
-    [a[0] & b[0], a[1] & b[1], a[2] & b[2], a[3] & b[3]]
-}
-#[inline(always)]
-fn not4(a: Mask4) -> Mask4 {
-    [!a[0], !a[1], !a[2], !a[3]]
-}
-/// Bit `l` set where lane `l` of `a` is set.
-#[inline(always)]
-fn bits4(a: Mask4) -> u32 {
-    (a[0] as u32 >> 31) | (a[1] as u32 >> 31) << 1 | (a[2] as u32 >> 31) << 2 | (a[3] as u32 >> 31) << 3
-}
-
-impl PreparedRay {
-    /// [`PreparedRay::intersect4`] for Moller-Trumbore: lane by lane, kept
-    /// out of line so the watertight path inlines into traversal loops.
-    #[inline(never)]
-    fn intersect4_moller_trumbore(&self, pack: &TrianglePack4, t_max: f32) -> [Option<TriangleHit>; 4] {
-        [0, 1, 2, 3].map(|l| intersect_triangle(&self.ray, lane_triangle(pack, l), t_max))
-    }
-}
-
-/// Triangle `lane` of a pack.
+/// Triangle `lane` of a pack (`lane` taken modulo `N`).
 #[inline]
-pub fn lane_triangle(pack: &TrianglePack4, lane: usize) -> [Vec3; 3] {
-    let l = lane & 3;
+pub fn lane_triangle<const N: usize>(pack: &TrianglePack<N>, lane: usize) -> [Vec3; 3] {
+    let l = lane % N.max(1);
     [0, 1, 2].map(|vtx| Vec3::new(pack[vtx][0][l], pack[vtx][1][l], pack[vtx][2][l]))
 }
 
@@ -626,23 +551,34 @@ mod tests {
         assert!(agreed > 100, "too few hits to compare: {agreed}");
     }
 
-    /// The four-lane kernel gives bit-identical answers to the scalar test,
-    /// for both tests, on random triangles, triangles sharing edges and
-    /// vertices (where the f64 fallback runs), degenerate and NaN lanes.
+    /// The lane kernel gives bit-identical answers to the scalar test, for
+    /// both tests, on packs of four and eight: random triangles, triangles
+    /// sharing edges and vertices (where the f64 fallback runs), degenerate
+    /// and NaN lanes.
     #[test]
-    fn four_lane_kernel_equals_the_scalar_test() {
-        let mut rng = crate::Pcg32::new(11, 2);
+    fn lane_kernel_equals_the_scalar_test() {
+        assert!(check_lanes::<4>(11) > 1000, "too few hits to compare");
+        assert!(check_lanes::<8>(12) > 2000, "too few hits to compare");
+    }
+
+    /// [`lane_kernel_equals_the_scalar_test`] on packs of `N`; the number of
+    /// lanes hit.
+    fn check_lanes<const N: usize>(seed: u64) -> usize {
+        let mut rng = crate::Pcg32::new(seed, 2);
         let mut p = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
         let mut hits = 0;
         for i in 0..4000 {
             let shared = p();
-            let mut tris = [[p(), p(), p()], [shared, p(), p()], [shared, p(), p()], [p(), p(), p()]];
+            let mut tris: [[Vec3; 3]; N] = std::array::from_fn(|l| match l % 4 {
+                1 | 2 => [shared, p(), p()],
+                _ => [p(), p(), p()],
+            });
             match i % 4 {
-                1 => tris[3] = [shared, shared, p()],
+                1 => tris[N - 1] = [shared, shared, p()],
                 2 => tris[0][1] = Vec3::new(f32::NAN, 0.0, 0.0),
                 _ => {}
             }
-            let mut pack = [[[0.0f32; 4]; 3]; 3];
+            let mut pack = [[[0.0f32; N]; 3]; 3];
             for (l, tri) in tris.iter().enumerate() {
                 for vtx in 0..3 {
                     for axis in 0..3 {
@@ -657,7 +593,7 @@ mod tests {
             for test in [TriangleTest::Watertight, TriangleTest::MollerTrumbore] {
                 let prepared = PreparedRay::new(&ray, test);
                 let t_max = if i % 3 == 0 { 2.0 } else { f32::INFINITY };
-                let lanes = prepared.intersect4(&pack, t_max);
+                let lanes = prepared.intersect_pack(&pack, t_max);
                 for (l, tri) in tris.iter().enumerate() {
                     assert_eq!(lanes[l], prepared.intersect(*tri, t_max), "lane {l} {ray:?} {tris:?}");
                     assert_eq!(lane_triangle(&pack, l)[2], tri[2]);
@@ -665,7 +601,7 @@ mod tests {
                 }
             }
         }
-        assert!(hits > 1000, "too few hits to compare: {hits}");
+        hits
     }
 
     #[test]
