@@ -35,7 +35,16 @@ an error naming the key, never a silent approximation:
   proportional to the mean of its weight and weighs the sample by the
   whole mixture (one-sample MIS); nested `blendbsdf`s with those
   probabilities as weights, and each lobe scaled by the inverse of its
-  probability, are the same estimator in Mitsuba 3.9. `ks` (Lucent's
+  probability, are the same estimator in Mitsuba 3.9 for smooth lobes.
+  A delta lobe (smooth mirror, dielectric) mixed with a smooth one is not:
+  Mitsuba 3.9's blendbsdf (since its PR 1681) weighs a delta sample by the
+  mixture's value over its density, adding the smooth lobes' value and
+  density in the delta direction to the delta's reflectance and selection
+  probability, which tints a mirror with the diffuse colour (a coloured
+  diffuse floor with a smooth mirror came out 0.2 to 0.6 % redder in the
+  floor's reflections at 8192 spp). That weight is still exact when every
+  mixed lobe is a Lambertian of the delta lobe's scaled reflectance (grey
+  kd and kt, say), so only such mixtures are mapped. `ks` (Lucent's
   normalised Phong lobe) and the metallic-roughness keys have no Mitsuba
   counterpart. `emission` is a one-sided `area` emitter.
 - `[[objects]]`: PLY meshes (`mesh`, with their normals and UVs) and the
@@ -143,8 +152,8 @@ def lobe_bsdf(name, kind, weight, params, scene_dir):
             if tex:
                 raise TwinError("material '%s': texture keys %s not mapped" % (name, ", ".join(sorted(tex))))
             # Lucent decodes sRGB to linear when loading, then filters
-            # bilinearly with texel centres at half-integers, v up; Mitsuba's
-            # bitmap does the same (raw = false), its mesh loaders flipping v.
+            # bilinearly with texel centres at half-integers; Mitsuba's
+            # bitmap does the same (raw = false); v: see the PLY shape.
             value = {"type": "bitmap", "filename": os.path.normpath(os.path.join(scene_dir, file)),
                      "filter_type": "bilinear", "wrap_mode": wrap, "raw": False}
         return {"type": "twosided", "material": {"type": "diffuse", "reflectance": value}}
@@ -172,6 +181,18 @@ def material_bsdf(name, m, scene_dir):
     means = [sum(w) / 3.0 for _, w, _ in ls]
     total = sum(means)
     probs = [x / total for x in means]
+    delta = [k == "dielectric" or (k == "conductor" and p["alpha"] < 1e-4) for k, _, p in ls]
+    if any(delta) and not all(delta):
+        # See the module's notes: Mitsuba 3.9 mixes the smooth lobes' value
+        # into a delta sample's weight, exact only for Lambertian lobes of
+        # the same scaled reflectance.
+        scaled_w = [[x / p for x in w] for (_, w, _), p in zip(ls, probs)]
+        same = all(abs(a - b) < 1e-6 for sw in scaled_w for a, b in zip(sw, scaled_w[0]))
+        if not same or any(k == "conductor" and not d for (k, _, _), d in zip(ls, delta)):
+            raise TwinError("material '%s': a smooth mirror or dielectric mixed with other lobes is mapped "
+                            "only when they are Lambertian of the same colour (Mitsuba 3.9's blendbsdf "
+                            "weighs such delta samples with a bias otherwise); give the mirror a roughness "
+                            "or make the weights grey" % name)
     scaled = [lobe_bsdf(name, k, [x / p for x in w], prm, scene_dir)
               for (k, w, prm), p in zip(ls, probs)]
     acc, acc_p = scaled[0], probs[0]
@@ -266,7 +287,10 @@ def scene_dict(mi, path):
             raise TwinError("%s: give a material" % where)
         m = materials[o["material"]]
         mesh_path = os.path.normpath(os.path.join(scene_dir, o["mesh"]))
-        shape = {"type": "ply", "filename": mesh_path, "face_normals": False,
+        # Lucent's texture coordinates have v up (OBJ's convention), and
+        # Mitsuba's bitmap puts v = 0 at the top row: its PLY reader flips v
+        # only when asked (its OBJ reader does by default).
+        shape = {"type": "ply", "filename": mesh_path, "face_normals": False, "flip_tex_coords": True,
                  "bsdf": {"type": "ref", "id": "mat_" + o["material"]}}
         if "emission" in m:
             shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": rgb(m["emission"])}}
