@@ -1,41 +1,59 @@
 #!/usr/bin/env bash
-# Lucent's path tracer against the Mitsuba 3 peer's Cornell box
-# (../shared/peers/mitsuba): error against its 8192-spp reference, and speed
-# beside Mitsuba's llvm_ad_rgb variant measured in the same session.
+# Lucent's path tracer against Mitsuba 3: error against a Mitsuba reference
+# and speed beside Mitsuba's llvm_ad_rgb variant measured in the same session,
+# on the Mitsuba peer's Cornell box (../shared/peers/mitsuba), the seed scene
+# path traced (res/scenes/seed-mitsuba.toml, Mitsuba's twin by seed.py) and
+# the heavy scene (res/scenes/heavy.toml, 2.16 M instanced triangles,
+# Mitsuba's twin by heavy.py).
 #
-#   xtask/mitsuba/compare.sh errors [SPPS] [SEED]     RMSE/FLIP of Lucent renders at each spp
-#                                                      (default "16,64,256", seed 0)
-#   xtask/mitsuba/compare.sh converge CHUNKS SPP      CHUNKS renders of SPP samples, seeds
+#   xtask/mitsuba/compare.sh bench [ROUNDS] [SCENES]
+#       issue 14's table: for each round (default 5), for each scene of SCENES
+#       (default "cornell,seed,heavy"), Lucent then Mitsuba render it at the
+#       scene's spp with the round's seed, each timed under the bench lock;
+#       then every render's RMSE against the scene's Mitsuba reference (the
+#       peer's 8192-spp render for the Cornell box; for the others REF_SPP spp
+#       rendered once under nice and cached in OUT, keyed by the scene's files
+#       and Mitsuba's version). Prints a JSON line per render (OUT/bench.jsonl),
+#       one per scene (OUT/bench_summary.jsonl: median s/spp of each, the
+#       median of the per-round time ratios, each one's RMSE averaged over the
+#       rounds' seeds, image means) and a markdown table.
+#       Spp per scene: SPP_CORNELL=64 SPP_SEED=16 SPP_HEAVY=16 (SPP sets all three)
+#   xtask/mitsuba/compare.sh heavy [ROUNDS] [SPP]     the same for the heavy scene alone
+#                                                      (default 5 rounds of 16 spp)
+#   xtask/mitsuba/compare.sh errors [SPPS] [SEED]     RMSE/FLIP of Lucent's Cornell box at each
+#                                                      spp (default "16,64,256", seed 0)
+#   xtask/mitsuba/compare.sh converge CHUNKS SPP      CHUNKS Cornell renders of SPP samples, seeds
 #                                                      1000, 1001, ..., averaged, then compared
 #                                                      (chunks already in OUT are reused; under nice)
-#   xtask/mitsuba/compare.sh bench [ROUNDS] [SPP]     interleaved timings, Lucent then Mitsuba
-#                                                      per round (default 5 rounds of 64 spp)
-#   xtask/mitsuba/compare.sh seeds [SPP] [SEEDS]      Lucent (seed s) and Mitsuba (seed 1000 s) at SPP
-#                                                      for each seed, alternately; both compared
-#                                                      (default 64 spp, seeds "11,12,13,14")
+#   xtask/mitsuba/compare.sh seeds [SPP] [SEEDS]      Cornell: Lucent (seed s) and Mitsuba (seed
+#                                                      1000 s) at SPP for each seed, alternately;
+#                                                      both compared (default 64 spp, seeds "11,12,13,14")
 #   xtask/mitsuba/compare.sh blocks STEM              bias check: 8x8-block means of STEM.exr
-#                                                      against the reference's
-#   xtask/mitsuba/compare.sh heavy [ROUNDS] [SPP]     interleaved timings of the heavy scene
-#                                                      (res/scenes/heavy.toml, 2.16 M instanced
-#                                                      triangles; Mitsuba's twin by heavy.py),
-#                                                      default 5 rounds of 16 spp, then both renders'
-#                                                      RMSE against a 1024-spp Mitsuba reference
-#                                                      (rendered once into OUT)
+#                                                      against the Cornell reference's
 #
-# env: OUT=/tmp/lucent-vs-mitsuba  PY=/tmp/mts/bin/python (a venv with the peer's
+# env: OUT=/tmp/lucent-vs-mitsuba  PEER=<repo>/../shared/peers/mitsuba (the peer's folder)
+#      PY=/tmp/mts/bin/python (a venv with the peer's
 #      requirements.txt: python3 -m venv /tmp/mts && /tmp/mts/bin/pip install -r
 #      ../shared/peers/mitsuba/requirements.txt; llvm_ad_rgb also needs libllvm19)
-#      THREADS=0 (Lucent worker threads; 0 = one per CPU)
-#      LUCENT=path/to/lucent (a binary to use instead of building target/release/lucent)
+#      THREADS=0 (Lucent worker threads; 0 = one per CPU; Mitsuba uses every CPU)
+#      LUCENT=path/to/lucent (a binary to time instead of building target/release/lucent)
+#      REF_SPP=2048 (spp of the cached references of the seed and heavy scenes)
 #
-# Lucent renders res/scenes/cornell-mitsuba.toml at 256x256 with max depth 16
-# (Mitsuba's meaning), writing linear EXR + PNG; the peer's `cornell.py
-# compare` reads them. Every timed run holds `flock /tmp/lucent-bench.lock`;
-# the load average is logged before and after each round. Nothing is written
-# inside the peer's folder.
+# Lucent renders each scene file as it stands (the Cornell box: 256x256, max
+# depth 16; seed: 640x360, depth 8; heavy: 256x256, depth 8), writing linear
+# EXR + PNG; its time is the render's ("rendered in", without loading and BVH
+# build), Mitsuba's is its renders' after a 1-spp warm-up that compiles its
+# kernels (without loading). Every timed run holds `flock
+# /tmp/lucent-bench.lock`, and the load average is logged with each. Nothing
+# is written inside the peer's folder.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
-PEER=$(cd "$ROOT/../shared/peers/mitsuba" && pwd)
+PEER=${PEER:-$ROOT/../shared/peers/mitsuba}
+if [[ ! -f $PEER/cornell.py ]]; then
+  echo "no Mitsuba peer at $PEER (its cornell.py and out/ref.exr): set PEER=.../shared/peers/mitsuba" >&2
+  exit 2
+fi
+PEER=$(cd "$PEER" && pwd)
 OUT=${OUT:-/tmp/lucent-vs-mitsuba}
 PY=${PY:-/tmp/mts/bin/python}
 THREADS=${THREADS:-0}
@@ -106,56 +124,72 @@ case $cmd in
   blocks)
     "$PY" "$HELP" blocks "$PEER/out/ref.exr" "${2:?stem}.exr"
     ;;
-  bench)
+  bench | heavy)
     ROUNDS=${2:-5}
-    SPP=${3:-64}
-    RES=$OUT/bench.jsonl
-    : >"$RES"
-    for round in $(seq "$ROUNDS"); do
-      before=$(load)
-      line=$(render flock /tmp/lucent-bench.lock -- "$OUT/bench_lucent" "$SPP" "$round")
-      s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
-      echo "{\"round\":$round,\"who\":\"lucent\",\"spp\":$SPP,\"render_s\":$s,\"load\":\"$before\"}" | tee -a "$RES"
-      before=$(load)
-      json=$(cd "$PEER" && lock "$PY" cornell.py render --variant llvm_ad_rgb --spp "$SPP" --seed "$round" \
-        --out "$OUT/bench_mitsuba" 2>/dev/null | tail -1)
-      s=$("$PY" -c 'import json,sys; print(json.loads(sys.argv[1])["render_s"])' "$json")
-      echo "{\"round\":$round,\"who\":\"mitsuba\",\"spp\":$SPP,\"render_s\":$s,\"load\":\"$before\"}" | tee -a "$RES"
-    done
-    echo "load after: $(load)"
-    "$PY" "$HELP" summarize "$RES"
-    compare "$OUT/bench_lucent" "$OUT/bench_mitsuba"
-    ;;
-  heavy)
-    ROUNDS=${2:-5}
-    SPP=${3:-16}
-    HEAVY=$ROOT/res/scenes/heavy.toml
-    RES=$OUT/heavy.jsonl
-    : >"$RES"
-    for round in $(seq "$ROUNDS"); do
-      before=$(load)
-      line=$(lock "$LUCENT" render "$HEAVY" --spp "$SPP" --seed "$round" --exr "$OUT/heavy_lucent.exr" \
-        -o "$OUT/heavy_lucent.png" "${thread_args[@]}")
-      s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
-      echo "{\"round\":$round,\"who\":\"lucent\",\"spp\":$SPP,\"render_s\":$s,\"load\":\"$before\"}" | tee -a "$RES"
-      before=$(load)
-      json=$(lock "$PY" "$ROOT/xtask/mitsuba/heavy.py" render --spp "$SPP" --seed "$round" \
-        --out "$OUT/heavy_mitsuba" 2>/dev/null | tail -1)
-      s=$("$PY" -c 'import json,sys; print(json.loads(sys.argv[1])["render_s"])' "$json")
-      echo "{\"round\":$round,\"who\":\"mitsuba\",\"spp\":$SPP,\"render_s\":$s,\"load\":\"$before\"}" | tee -a "$RES"
-    done
-    echo "load after: $(load)"
-    "$PY" "$HELP" summarize "$RES"
-    # The last round's renders against Mitsuba's reference of the heavy
-    # scene, made once (1024 spp, under nice) and kept in OUT.
-    if [[ ! -f $OUT/heavy_ref.exr ]]; then
-      nice -n 19 "$PY" "$ROOT/xtask/mitsuba/heavy.py" render --spp 1024 --seed 99999 --out "$OUT/heavy_ref" >/dev/null
+    if [[ $cmd == heavy ]]; then
+      SCENES=heavy
+      SPP_HEAVY=${3:-${SPP:-16}}
+    else
+      SCENES=${3:-cornell,seed,heavy}
     fi
-    echo "mean radiance and RMSE against Mitsuba's 1024-spp reference (a: Lucent, b: Mitsuba):"
-    "$PY" "$HELP" pair "$OUT/heavy_lucent.exr" "$OUT/heavy_mitsuba.exr" "$OUT/heavy_ref.exr"
+    REF_SPP=${REF_SPP:-2048}
+    RES=$OUT/bench.jsonl
+    mkdir -p "$OUT/bench"
+    : >"$RES"
+    # scene_info NAME: sets toml, spp, ref, mts (Mitsuba's render command,
+    # which takes --spp N --seed S --out STEM) and seed_scale (the peer's
+    # passes of 64 spp are seeded from --seed up, so its rounds' seeds lie
+    # 1000 apart; twin.py spaces them itself).
+    declare -A REF_KEY=()
+    scene_info() {
+      seed_scale=1
+      case $1 in
+        cornell)
+          toml=$ROOT/res/scenes/cornell-mitsuba.toml spp=${SPP_CORNELL:-${SPP:-64}} ref=$PEER/out/ref.exr
+          mts=(env -C "$PEER" "$PY" cornell.py render --variant llvm_ad_rgb) seed_scale=1000 ;;
+        seed | heavy)
+          toml=$ROOT/res/scenes/$1.toml
+          [[ $1 == seed ]] && toml=$ROOT/res/scenes/seed-mitsuba.toml
+          if [[ $1 == seed ]]; then spp=${SPP_SEED:-${SPP:-16}}; else spp=${SPP_HEAVY:-${SPP:-16}}; fi
+          mts=("$PY" "$ROOT/xtask/mitsuba/$1.py" render)
+          # The reference is keyed by every file that shapes the scene
+          # (worked out once per run).
+          [[ -n ${REF_KEY[$1]:-} ]] || REF_KEY[$1]=$( (cat "$toml" "$ROOT"/xtask/mitsuba/{twin,"$1"}.py; sed -n 's/^mesh = "\(.*\)"/\1/p; s/^texture = "\(.*\)"/\1/p' "$toml" |
+            sort -u | (cd "$(dirname "$toml")" && xargs cat); "$PY" -c 'import mitsuba; print(mitsuba.__version__)') |
+            sha256sum | cut -c1-12)
+          ref=$OUT/ref_$1_${REF_KEY[$1]}_$REF_SPP.exr ;;
+        *) echo "unknown scene '$1' (cornell, seed, heavy)" >&2; exit 2 ;;
+      esac
+    }
+    # References first (under nice, outside the lock), so no timed round waits on one.
+    for scene in ${SCENES//,/ }; do
+      scene_info "$scene"
+      if [[ ! -f $ref ]]; then
+        echo "rendering the $scene reference ($REF_SPP spp, once) into $ref"
+        nice -n 19 "${mts[@]}" --spp "$REF_SPP" --seed 99999 --out "${ref%.exr}" >/dev/null
+      fi
+    done
+    echo "lucent: $LUCENT ($(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo '?')), $(nproc) CPUs: $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
+    for round in $(seq "$ROUNDS"); do
+      for scene in ${SCENES//,/ }; do
+        scene_info "$scene"
+        stem=$OUT/bench/${scene}_lucent_$round
+        before=$(load)
+        line=$(lock "$LUCENT" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}")
+        s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
+        echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"lucent\",\"spp\":$spp,\"seed\":$round,\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
+        stem=$OUT/bench/${scene}_mitsuba_$round
+        before=$(load)
+        json=$(lock "${mts[@]}" --spp "$spp" --seed $((round * seed_scale)) --out "$stem" 2>/dev/null | tail -1)
+        s=$("$PY" -c 'import json,sys; print(json.loads(sys.argv[1])["render_s"])' "$json")
+        echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"mitsuba\",\"spp\":$spp,\"seed\":$((round * seed_scale)),\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
+      done
+    done
+    echo "load after: $(load)"
+    "$PY" "$HELP" table "$RES" "$OUT/bench_summary.jsonl"
     ;;
   *)
-    echo "usage: $0 errors|converge|bench|seeds|blocks|heavy ..." >&2
+    echo "usage: $0 bench|heavy|errors|converge|seeds|blocks ..." >&2
     exit 2
     ;;
 esac

@@ -7,6 +7,12 @@ Mitsuba to read and write EXR, and numpy).
   tools.py summarize bench.jsonl              medians of interleaved timings
   tools.py pair A.exr B.exr [REF.exr]         mean radiance of two renders; with REF, each
                                               one's RMSE against it (equal error at equal spp)
+  tools.py table bench.jsonl [SUMMARY.jsonl]  compare.sh bench's table: per scene the median
+                                              s/spp of each renderer, their ratio and each
+                                              one's RMSE against the scene's reference at
+                                              that spp, mean over the rounds (seeds); one
+                                              JSON line per scene (also into SUMMARY), then
+                                              the markdown table
   tools.py noise REF.exr REF_SPP CHUNK.exr ...  error of the chunks' mean against what noise
                                               explains: each chunk (equal spp, independent
                                               seeds) gives every pixel's variance, hence the
@@ -126,6 +132,58 @@ def pair(a_path, b_path, ref_path=None):
     print(json.dumps(out))
 
 
+def rmse(a, b):
+    return float(np.sqrt(np.mean((a - b) ** 2)))
+
+
+def table(path, summary_path=None):
+    """Reads the round lines of compare.sh bench (scene, who, round, spp,
+    render_s, exr, ref, load) and prints what each scene measured."""
+    rows = [json.loads(l) for l in open(path) if l.strip()]
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    refs = {}
+    out = []
+    for scene in scenes:
+        mine = [r for r in rows if r["scene"] == scene]
+        ref_path = mine[0]["ref"]
+        ref = refs.setdefault(ref_path, load(ref_path))
+        s = {"scene": scene, "spp": mine[0]["spp"], "rounds": len({r["round"] for r in mine}), "ref": ref_path}
+        for who in ("lucent", "mitsuba"):
+            rs = [r for r in mine if r["who"] == who]
+            s_per_spp = [r["render_s"] / r["spp"] for r in rs]
+            errs = [rmse(load(r["exr"]), ref) for r in rs]
+            s[who + "_s_per_spp"] = round(statistics.median(s_per_spp), 5)
+            s[who + "_s_per_spp_rounds"] = [round(x, 5) for x in s_per_spp]
+            s[who + "_rmse_mean"] = round(statistics.mean(errs), 5)
+            s[who + "_rmse_rounds"] = [round(x, 5) for x in errs]
+            s[who + "_mean_radiance"] = [round(float(x), 5) for x in
+                                         np.mean([load(r["exr"]).reshape(-1, 3).mean(0) for r in rs], axis=0)]
+        s["ref_mean_radiance"] = [round(float(x), 5) for x in ref.reshape(-1, 3).mean(0)]
+        # Per round, Mitsuba's time over Lucent's in the same round (above 1:
+        # Lucent faster); the median of those shares each round's load.
+        pairs = {}
+        for r in mine:
+            pairs.setdefault(r["round"], {})[r["who"]] = r["render_s"]
+        ratios = [p["mitsuba"] / p["lucent"] for p in pairs.values() if "mitsuba" in p and "lucent" in p]
+        s["ratio_median"] = round(statistics.median(ratios), 3)
+        s["ratio_rounds"] = [round(x, 3) for x in ratios]
+        s["loads"] = [r["load"] for r in mine]
+        out.append(s)
+        print(json.dumps(s))
+    if summary_path:
+        with open(summary_path, "w") as f:
+            for s in out:
+                f.write(json.dumps(s) + "\n")
+    print()
+    print("| scene | spp | Lucent s/spp | Mitsuba s/spp | Mitsuba / Lucent time (per-round median) "
+          "| Lucent RMSE | Mitsuba RMSE | rounds (seeds) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for s in out:
+        print("| %s | %d | %.4f | %.4f | %.2f | %.5f | %.5f | %d |" % (
+            s["scene"], s["spp"], s["lucent_s_per_spp"], s["mitsuba_s_per_spp"], s["ratio_median"],
+            s["lucent_rmse_mean"], s["mitsuba_rmse_mean"], s["rounds"]))
+
+
 if __name__ == "__main__":
     cmd = sys.argv[1]
     if cmd == "average":
@@ -138,5 +196,7 @@ if __name__ == "__main__":
         summarize(sys.argv[2])
     elif cmd == "pair":
         pair(*sys.argv[2:5])
+    elif cmd == "table":
+        table(*sys.argv[2:4])
     else:
         sys.exit(__doc__)

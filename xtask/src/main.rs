@@ -40,12 +40,13 @@ commands:
   tidy                     check repository rules
   render SCENE [--out FILE.png] [lucent render options...]
                            render with a release build (default out: target/render.png)
-  view-bench [--size WxH] [--cycles N] [--rotate-s S] [--settle-s S] [--denoise] [--no-build]
-                           drag-rotate the viewer with xdotool (under Xvfb if needed);
-                           one JSON line: fps while rotating, settled scale,
-                           release to first full-resolution frame (and, with
-                           --denoise, to the first denoised still)
-  soak [--seconds S] [--seed N] [--size WxH] [--no-build]
+  view-bench [--scene FILE] [--size WxH] [--cycles N] [--rotate-s S] [--settle-s S] [--denoise] [--no-build]
+                           drag-rotate the viewer with xdotool (under Xvfb if needed)
+                           on FILE (default: the built-in seed scene); one JSON
+                           line: fps while rotating, settled scale, release to
+                           first full-resolution frame (and, with --denoise, to
+                           the first denoised still), load average before and after
+  soak [--seconds S] [--seed N] [--size WxH] [--scene FILE] [--no-build]
                            random input for S seconds (default 60): no panic,
                            finite camera, flat memory; one JSON line
   extremes [FILTER]        the extremes suite at full size (release build): a 16384-wide

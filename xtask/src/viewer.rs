@@ -2,9 +2,10 @@
 //! the viewer's `--stats` lines:
 //!
 //! - `view-bench`: continuous rotation by dragging, then release, several
-//!   cycles; prints one JSON line with the displayed frame rate while
-//!   rotating, the resolution scale it settles at and the time from
-//!   releasing the mouse to the first full-resolution frame (medians);
+//!   cycles, on the built-in seed scene or `--scene FILE`; prints one JSON
+//!   line with the displayed frame rate while rotating, the resolution
+//!   scale it settles at and the time from releasing the mouse to the first
+//!   full-resolution frame (medians), and the load average before and after;
 //!   with `--denoise` the viewer denoises (OIDN), and the line adds the
 //!   time from the release to the first denoised full-resolution still
 //!   and the share of previews shown denoised while rotating;
@@ -23,11 +24,15 @@ mod xdo;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::mpsc::RecvTimeoutError;
 use std::time::{Duration, Instant};
 use xdo::{Viewer, field, find_window, xdotool};
 
 /// Options shared by both tasks.
 struct Opts {
+    /// The scene the viewer opens (absolute), or `None` for the built-in
+    /// seed scene.
+    scene: Option<PathBuf>,
     size: String,
     build: bool,
     cycles: u32,
@@ -43,6 +48,7 @@ struct Opts {
 
 fn parse_opts(args: &[String]) -> Result<Opts, String> {
     let mut o = Opts {
+        scene: None,
         size: "640x360".to_owned(),
         build: true,
         cycles: 5,
@@ -58,6 +64,12 @@ fn parse_opts(args: &[String]) -> Result<Opts, String> {
         let num = |v: String, name: &str| v.parse::<f64>().map_err(|_| format!("{name}: '{v}' is not a number"));
         match a.as_str() {
             "--size" => o.size = value("--size")?,
+            // Absolute, because the viewer runs in the temporary directory.
+            "--scene" => {
+                let path = value("--scene")?;
+                let abs = std::fs::canonicalize(&path).map_err(|e| format!("--scene {path}: {e}"))?;
+                o.scene = Some(abs);
+            }
             "--no-build" => o.build = false,
             "--denoise" => o.denoise = true,
             "--settle-s" => o.settle_s = num(value("--settle-s")?, "--settle-s")?.max(0.5) as f32,
@@ -126,7 +138,31 @@ fn json_list(v: &[f64]) -> String {
     format!("[{}]", items.join(","))
 }
 
-/// `cargo xtask view-bench [--size WxH] [--cycles N] [--rotate-s S] [--settle-s S] [--denoise] [--no-build]`
+/// The viewer's arguments: the scene (when not the built-in one), then `rest`.
+fn viewer_args<'a>(o: &'a Opts, rest: &[&'a str]) -> Result<Vec<&'a str>, String> {
+    let mut args = Vec::new();
+    if let Some(scene) = &o.scene {
+        args.push(scene.to_str().ok_or("--scene: the path is not UTF-8")?);
+    }
+    args.extend_from_slice(rest);
+    Ok(args)
+}
+
+/// The name a JSON line gives the scene.
+fn scene_name(o: &Opts) -> String {
+    o.scene
+        .as_ref()
+        .map_or_else(|| "built-in seed".to_owned(), |p| p.display().to_string())
+}
+
+/// The 1, 5 and 15 minute load averages, as /proc/loadavg gives them.
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|l| l.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".to_owned())
+}
+
+/// `cargo xtask view-bench [--scene FILE] [--size WxH] [--cycles N] [--rotate-s S] [--settle-s S] [--denoise] [--no-build]`
 pub fn bench(args: &[String]) -> Result<(), String> {
     if let Some(res) = under_xvfb("view-bench", args) {
         return res;
@@ -138,11 +174,12 @@ pub fn bench(args: &[String]) -> Result<(), String> {
         .split_once('x')
         .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
         .ok_or_else(|| format!("--size: '{}' is not WxH", o.size))?;
-    let mut viewer_args = vec!["--size", o.size.as_str(), "--stats"];
+    let mut rest = vec!["--size", o.size.as_str(), "--stats"];
     if o.denoise {
-        viewer_args.push("--denoise");
+        rest.push("--denoise");
     }
-    let viewer = start_viewer(&bin, &viewer_args)?;
+    let load_before = load_average();
+    let viewer = start_viewer(&bin, &viewer_args(&o, &rest)?)?;
     let res = bench_cycles(&viewer, &o, w, h);
     let _ = xdotool(&["key", "--delay", "100", "Escape"]);
     let (ok, err) = finish(viewer)?;
@@ -150,8 +187,22 @@ pub fn bench(args: &[String]) -> Result<(), String> {
     if !ok {
         return Err(format!("the viewer failed: {err}"));
     }
-    println!("{summary}");
+    println!(
+        "{{\"scene\":\"{}\",{summary},\"load_before\":\"{load_before}\",\"load_after\":\"{}\"}}",
+        scene_name(&o),
+        load_average()
+    );
     Ok(())
+}
+
+/// Waits for the viewer's first displayed frame (loading a heavy scene and
+/// building its trees come first), at most `limit`.
+fn first_frame(viewer: &Viewer, limit: Duration) -> Result<(), String> {
+    match viewer.lines.recv_timeout(limit) {
+        Ok(_) => Ok(()),
+        Err(RecvTimeoutError::Timeout) => Err(format!("no frame within {} s of the window", limit.as_secs())),
+        Err(RecvTimeoutError::Disconnected) => Err("the viewer quit before its first frame".to_owned()),
+    }
 }
 
 fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, String> {
@@ -159,6 +210,7 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
     xdotool(&["windowfocus", "--sync", &win])?;
     xdotool(&["mousemove", "--window", &win, "100", &(h / 2).to_string()])?;
     // Warm up: the first full-resolution frames.
+    first_frame(viewer, Duration::from_secs(300))?;
     std::thread::sleep(Duration::from_secs(3));
     let (mut fps, mut frame_ms, mut scales, mut release_ms, mut release_internal_ms) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -201,8 +253,8 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
             let wait = deadline.saturating_duration_since(now).max(Duration::from_millis(50));
             match viewer.lines.recv_timeout(wait) {
                 Ok(line) => lines.push(line),
-                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
-                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+                Err(RecvTimeoutError::Timeout) => {}
             }
             let denoised_still = lines.iter().any(|(t, l)| {
                 *t >= released && l.contains("\"denoised\":true") && field(l, "width") == Some(f64::from(w))
@@ -282,10 +334,10 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
         String::new()
     };
     Ok(format!(
-        "{{\"scene\":\"built-in seed\",\"size\":\"{}\",\"cycles\":{},\"rotate_s\":{},\
+        "\"size\":\"{}\",\"cycles\":{},\"rotate_s\":{},\
 \"rotation_fps_median\":{:.1},\"rotation_frame_ms_median\":{:.1},\"settled_scale_median\":{:.2},\
 \"release_to_full_res_ms_median\":{:.0},\"last_change_to_full_res_ms_median\":{:.0},\
-\"rotation_fps\":{},\"settled_scale\":{},\"release_to_full_res_ms\":{}{denoised}}}",
+\"rotation_fps\":{},\"settled_scale\":{},\"release_to_full_res_ms\":{}{denoised}",
         o.size,
         o.cycles,
         o.rotate_s,
@@ -300,7 +352,7 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
     ))
 }
 
-/// `cargo xtask soak [--seconds S] [--seed N] [--size WxH] [--no-build]`
+/// `cargo xtask soak [--seconds S] [--seed N] [--size WxH] [--scene FILE] [--no-build]`
 pub fn soak(args: &[String]) -> Result<(), String> {
     if let Some(res) = under_xvfb("soak", args) {
         return res;
@@ -309,10 +361,8 @@ pub fn soak(args: &[String]) -> Result<(), String> {
     let bin = release_binary(o.build)?;
     let seconds = o.seconds.to_string();
     let seed = o.seed.to_string();
-    let viewer = start_viewer(
-        &bin,
-        &["--size", &o.size, "--stats", "--soak", &seconds, "--soak-seed", &seed],
-    )?;
+    let rest = ["--size", &o.size, "--stats", "--soak", &seconds, "--soak-seed", &seed];
+    let viewer = start_viewer(&bin, &viewer_args(&o, &rest)?)?;
     let mut rss_kb: Vec<(f64, f64)> = Vec::new();
     let (mut frames, mut bad) = (0u64, Vec::new());
     let start = Instant::now();
@@ -328,8 +378,8 @@ pub fn soak(args: &[String]) -> Result<(), String> {
                     bad.push(line);
                 }
             }
-            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
-            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
         }
         let t = start.elapsed().as_secs_f64();
         if rss_kb.last().is_none_or(|&(last, _)| t - last >= 0.5)
@@ -358,9 +408,10 @@ pub fn soak(args: &[String]) -> Result<(), String> {
     let growth = late - early;
     let flat = third > 0 && growth < (4096.0f64).max(0.05 * early);
     println!(
-        "{{\"seconds\":{},\"seed\":{},\"size\":\"{}\",\"inputs\":{inputs},\"frames\":{frames},\"non_finite_frames\":{},\
+        "{{\"scene\":\"{}\",\"seconds\":{},\"seed\":{},\"size\":\"{}\",\"inputs\":{inputs},\"frames\":{frames},\"non_finite_frames\":{},\
 \"rss_samples\":{},\"rss_early_median_kb\":{early:.0},\"rss_late_median_kb\":{late:.0},\"rss_max_kb\":{max:.0},\
 \"rss_growth_kb\":{growth:.0},\"flat\":{flat},\"clean_exit\":{}}}",
+        scene_name(&o),
         o.seconds,
         o.seed,
         o.size,
@@ -410,5 +461,22 @@ mod tests {
         );
         assert!(parse_opts(&strings(&["--bogus"])).is_err());
         assert!(parse_opts(&strings(&["--cycles"])).is_err());
+    }
+
+    #[test]
+    fn a_scene_goes_first_and_absolute_and_a_missing_one_is_an_error() {
+        let o = parse_opts(&strings(&[])).unwrap();
+        assert_eq!(viewer_args(&o, &["--stats"]).unwrap(), ["--stats"]);
+        assert_eq!(scene_name(&o), "built-in seed");
+        let toml = root().join("res/scenes/heavy.toml");
+        let o = parse_opts(&strings(&["--scene", toml.to_str().unwrap()])).unwrap();
+        let args = viewer_args(&o, &["--stats"]).unwrap();
+        assert!(
+            Path::new(args[0]).is_absolute() && args[0].ends_with("heavy.toml"),
+            "{args:?}"
+        );
+        assert_eq!(args[1], "--stats");
+        let err = parse_opts(&strings(&["--scene", "no/such/scene.toml"])).err().unwrap();
+        assert!(err.starts_with("--scene no/such/scene.toml: "), "{err}");
     }
 }
