@@ -65,7 +65,7 @@ use crate::interaction::SurfaceInteraction;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3};
-use lucent_shading::{Bsdf, Frame, Material};
+use lucent_shading::{Bsdf, Frame, LocalDir, Material};
 
 /// Highest survival probability of Russian roulette.
 const RR_MAX_SURVIVAL: f32 = 0.95;
@@ -247,13 +247,19 @@ impl<'a> PathTracer<'a> {
             }
             let frame = Frame::from_normal(shading_normal);
             let wo = frame.to_local(-ray.dir);
+            // Normalised once for every BSDF call below; a direction in the
+            // surface plane scatters nothing (no light sample could count
+            // and no BSDF sample exists), so the path ends there.
+            let Some(wo_unit) = LocalDir::new(wo) else {
+                break;
+            };
 
             // Next-event estimation.
             if !bsdf.is_delta()
                 && let Some(ls) = lights.sample(hit.p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                && let Some(wi) = LocalDir::new(frame.to_local(ls.wi))
             {
-                let wi = frame.to_local(ls.wi);
-                let f = bsdf.eval(wo, wi);
+                let (f, bsdf_pdf) = bsdf.eval_pdf(wo_unit, wi);
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
                     let side = if ls.wi.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
@@ -264,7 +270,7 @@ impl<'a> PathTracer<'a> {
                         let w = if ls.delta {
                             1.0
                         } else {
-                            power_heuristic(ls.pdf, bsdf.pdf(wo, wi))
+                            power_heuristic(ls.pdf, bsdf_pdf)
                         };
                         radiance += self.clamped(throughput * f * ls.value * (w / ls.pdf), depth >= 1);
                     }
@@ -273,7 +279,7 @@ impl<'a> PathTracer<'a> {
 
             // BSDF sampling: the next segment.
             let u_lobe = rng.next_f32();
-            let Some(bs) = bsdf.sample(wo, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
+            let Some(bs) = bsdf.sample_local(wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
                 break;
             };
             throughput *= bs.weight;

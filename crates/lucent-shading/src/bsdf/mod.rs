@@ -166,11 +166,53 @@ fn clean(v: Vec3) -> Vec3 {
     Vec3::new(c(v.x), c(v.y), c(v.z))
 }
 
-/// A usable unit direction with non-zero z, or `None`.
+/// A usable unit direction with non-zero z, or `None`: `v` times the
+/// reciprocal of its length (glam's `normalize_or_zero`, whose validity
+/// test on the reciprocal is made here by two comparisons instead of a test
+/// of its bits).
 #[inline]
 fn unit(v: Vec3) -> Option<Vec3> {
-    let u = v.normalize_or_zero();
+    let rcp = v.length_recip();
+    if !(rcp > 0.0 && rcp < f32::INFINITY) {
+        return None;
+    }
+    let u = v * rcp;
     (u.z != 0.0).then_some(u)
+}
+
+/// A direction in a [`Frame`]'s coordinates as every BSDF call takes it:
+/// unit length, off the surface plane (`z != 0`).
+///
+/// [`Bsdf::eval`], [`Bsdf::pdf`] and [`Bsdf::sample`] normalise their
+/// directions on every call; a caller that makes several calls with one
+/// direction normalises it once into a `LocalDir` and calls
+/// [`Bsdf::eval_pdf`] and [`Bsdf::sample_local`], which give the very same
+/// numbers.
+///
+/// ```
+/// use lucent_shading::{Bsdf, LocalDir, Vec3};
+/// let bsdf = Bsdf::lambertian(Vec3::splat(0.5));
+/// let (wo, wi) = (Vec3::new(0.1, 0.2, 0.9), Vec3::new(-0.3, 0.0, 0.4));
+/// let (Some(lo), Some(li)) = (LocalDir::new(wo), LocalDir::new(wi)) else { unreachable!() };
+/// assert_eq!(bsdf.eval_pdf(lo, li), (bsdf.eval(wo, wi), bsdf.pdf(wo, wi)));
+/// assert!(LocalDir::new(Vec3::X).is_none(), "in the surface plane");
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LocalDir(Vec3);
+
+impl LocalDir {
+    /// `v` normalised, or `None` when it is zero, not finite or lies in the
+    /// surface plane (where every BSDF call gives zero or `None`).
+    #[inline]
+    pub fn new(v: Vec3) -> Option<LocalDir> {
+        unit(v).map(LocalDir)
+    }
+
+    /// The unit vector.
+    #[inline]
+    pub fn get(self) -> Vec3 {
+        self.0
+    }
 }
 
 impl Bsdf {
@@ -389,6 +431,38 @@ impl Bsdf {
         }
     }
 
+    /// [`Bsdf::eval`] and [`Bsdf::pdf`] together, for directions already
+    /// normalised: the same two numbers, computed once.
+    #[inline]
+    pub fn eval_pdf(&self, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        if self.only_diffuse() {
+            return self.lambert_eval_pdf(wo.0, wi.0);
+        }
+        (self.eval_unit(wo.0, wi.0), self.pdf_unit(wo.0, wi.0))
+    }
+
+    /// Whether the only lobe `sample` ever picks is a plain (uncoupled)
+    /// Lambertian one: the selection puts all its probability on it, so
+    /// every other lobe is skipped by `eval`, `pdf` and `sample` too.
+    #[inline]
+    fn only_diffuse(&self) -> bool {
+        self.cdf[DIFFUSE] == 1.0 && self.coupled_f0 < 0.0
+    }
+
+    /// `eval_unit` and `pdf_unit` of a BSDF that is `only_diffuse`, with
+    /// their arithmetic: the sums over lobes start from zero (adding a
+    /// non-negative term to 0 gives the term) and the diffuse lobe's
+    /// probability is 1, so each reduces to its one term. Their checks for
+    /// non-finite results always pass here: `d` is at most `1 / pi` for a
+    /// unit `wi`, and the diffuse weight is finite (`clean`).
+    #[inline]
+    fn lambert_eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let d = lobes::lambert_eval(wo, wi);
+        let f = self.diffuse * d;
+        debug_assert!(f.is_finite() && d.is_finite());
+        (f, d)
+    }
+
     fn eval_unit(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         let mut f = Vec3::ZERO;
         if self.prob(DIFFUSE) > 0.0 {
@@ -442,7 +516,39 @@ impl Bsdf {
     /// direction. `None` when the sample is absorbed (a black BSDF, a lobe
     /// direction below the surface) or the input is degenerate.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        let wo = unit(wo)?;
+        self.sample_local(LocalDir::new(wo)?, u_lobe, u)
+    }
+
+    /// [`Bsdf::sample`] for a direction already normalised: the same
+    /// sample.
+    #[inline]
+    pub fn sample_local(&self, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let wo = wo.0;
+        if self.only_diffuse() {
+            // The lobe choice of the general code below: the first
+            // cumulative probability (1) above `u_lobe`, none for NaN.
+            let picked = u_lobe < 1.0;
+            if !picked {
+                return None;
+            }
+            let wi = unit(lobes::lambert_sample(wo, u))?;
+            let (f, pdf) = self.lambert_eval_pdf(wo, wi);
+            if pdf <= 0.0 {
+                return None;
+            }
+            return finite(BsdfSample {
+                wi,
+                weight: f / pdf,
+                pdf,
+                delta: false,
+            });
+        }
+        self.sample_mixture(wo, u_lobe, u)
+    }
+
+    /// The general `sample`: a lobe picked by the selection probabilities,
+    /// a direction from it, the mixture's density and weight.
+    fn sample_mixture(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let k = self.cdf.iter().position(|&c| u_lobe < c)?;
         let p = self.prob(k);
         let lo = self.cdf[k] - p;

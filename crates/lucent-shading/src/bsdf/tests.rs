@@ -339,3 +339,71 @@ fn ggx_distribution_and_visible_normals_are_normalised() {
         }
     }
 }
+
+#[test]
+fn the_one_lobe_paths_give_the_general_codes_bits() {
+    // Plain Lambertian mixtures take their own path in `eval_pdf` and
+    // `sample_local`; the general code must give the very same numbers, so
+    // renders keep their bytes. Directions on both sides, grazing ones and
+    // ones in the plane included.
+    let mut rng = Pcg32::new(11, 3);
+    let mut next = || rng.next_f32();
+    let bsdfs = [
+        Bsdf::lambertian(Vec3::new(0.725, 0.71, 0.68)),
+        Bsdf::lambertian(Vec3::new(1.0, 0.0, 1e-30)),
+        Material {
+            kd: Vec3::splat(0.6),
+            ks: Vec3::splat(1e-12),
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+    ];
+    for bsdf in bsdfs {
+        assert!(bsdf.only_diffuse());
+        let mut n = 0;
+        for i in 0..20_000 {
+            let mut v = || Vec3::new(next(), next(), next()) * 2.0 - 1.0;
+            let (mut wo, mut wi) = (v(), v());
+            if i % 97 == 0 {
+                wo.z = 0.0;
+            }
+            if i % 89 == 0 {
+                wi.z = 1e-30;
+            }
+            let (u_lobe, u) = (next(), Vec2::new(next(), next()));
+            let (Some(lo), Some(li)) = (LocalDir::new(wo), LocalDir::new(wi)) else {
+                assert_eq!(bsdf.eval(wo, wi), Vec3::ZERO);
+                continue;
+            };
+            n += 1;
+            let (f, pdf) = bsdf.eval_pdf(lo, li);
+            let (f_gen, pdf_gen) = (bsdf.eval_unit(lo.get(), li.get()), bsdf.pdf_unit(lo.get(), li.get()));
+            assert_eq!(f.to_array().map(f32::to_bits), f_gen.to_array().map(f32::to_bits));
+            assert_eq!(pdf.to_bits(), pdf_gen.to_bits());
+            let bits = |s: Option<BsdfSample>| {
+                s.map(|s| {
+                    (
+                        s.wi.to_array().map(f32::to_bits),
+                        s.weight.to_array().map(f32::to_bits),
+                        s.pdf.to_bits(),
+                        s.delta,
+                    )
+                })
+            };
+            let fast = bsdf.sample_local(lo, u_lobe, u);
+            assert_eq!(bits(fast), bits(bsdf.sample_mixture(lo.get(), u_lobe, u)));
+            assert_eq!(bits(fast), bits(bsdf.sample(wo, u_lobe, u)));
+        }
+        assert!(n > 19_000);
+        assert!(bsdf.sample_local(LocalDir(Vec3::Z), 1.0, Vec2::ZERO).is_none());
+    }
+    // Mixtures with other lobes, and glTF's coupled base, keep the general
+    // code.
+    let plastic = Material {
+        ks: Vec3::splat(0.3),
+        ..Material::default()
+    };
+    assert!(Material::default().bsdf(Vec3::ONE).only_diffuse() && !plastic.bsdf(Vec3::ONE).only_diffuse());
+    assert!(!Bsdf::metallic_roughness(Vec3::ONE, 0.0, 0.5, 0.0, 1.5).only_diffuse());
+    assert!(!Bsdf::mirror(Vec3::ONE).only_diffuse());
+}
