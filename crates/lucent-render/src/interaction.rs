@@ -73,7 +73,7 @@ impl<'a> SurfaceInteraction<'a> {
         let obj = mesh.triangle(hit.prim as usize);
         let corners = instance.corners_to_render(obj);
         let to_render = instance.normal_render_from_object;
-        let ng = (to_render * triangle_normal(obj)).try_normalize()?;
+        let ng = try_unit(to_render * triangle_normal(obj))?;
         let reads = instance.reads;
         let normals = mesh.normals().filter(|_| reads.normals);
         let (ns, corner_normals) = if CORNER_NORMALS {
@@ -90,7 +90,7 @@ impl<'a> SurfaceInteraction<'a> {
             (ns, corner_normals)
         } else {
             let ns = normals
-                .and_then(|n| (to_render * barycentric(idx.map(|i| n[i as usize]), bary)).try_normalize())
+                .and_then(|n| try_unit(to_render * barycentric(idx.map(|i| n[i as usize]), bary)))
                 .unwrap_or(ng);
             (ns, None)
         };
@@ -143,18 +143,15 @@ impl<'a> SurfaceInteraction<'a> {
     /// and the bitangent `w ns x t`), or `ns` unchanged without a map,
     /// UVs or a tangent, or where the bent normal would face the other
     /// side of the surface from `ns`.
-    #[inline]
+    ///
+    /// Without a tangent (an instance whose material has no normal map)
+    /// this is `ns`, decided inline; only a bent normal costs a call, so the
+    /// interaction need not be kept in memory for it.
+    #[inline(always)]
     pub fn mapped_normal(&self, material: &lucent_shading::Material) -> Vec3 {
-        let (Some(t), Some(local)) = (self.tangent, material.tangent_space_normal(self.uv)) else {
-            return self.ns;
-        };
-        let Some(tangent) = (t.truncate() - self.ns * self.ns.dot(t.truncate())).try_normalize() else {
-            return self.ns;
-        };
-        let bitangent = t.w * self.ns.cross(tangent);
-        match (tangent * local.x + bitangent * local.y + self.ns * local.z).try_normalize() {
-            Some(n) if n.dot(self.ng) * self.ns.dot(self.ng) > 0.0 => n,
-            _ => self.ns,
+        match self.tangent {
+            None => self.ns,
+            Some(t) => bent_normal(self.ns, self.ng, t, self.uv, material),
         }
     }
 
@@ -165,6 +162,32 @@ impl<'a> SurfaceInteraction<'a> {
     pub fn offset(&self, q: Vec3, n: Vec3) -> Vec3 {
         offset_ray_origin_scaled(q, n, self.magnitude)
     }
+}
+
+/// [`SurfaceInteraction::mapped_normal`] for an interaction with tangent `t`.
+#[inline(never)]
+fn bent_normal(ns: Vec3, ng: Vec3, t: Vec4, uv: Option<Vec2>, material: &lucent_shading::Material) -> Vec3 {
+    let Some(local) = material.tangent_space_normal(uv) else {
+        return ns;
+    };
+    let Some(tangent) = (t.truncate() - ns * ns.dot(t.truncate())).try_normalize() else {
+        return ns;
+    };
+    let bitangent = t.w * ns.cross(tangent);
+    match (tangent * local.x + bitangent * local.y + ns * local.z).try_normalize() {
+        Some(n) if n.dot(ng) * ns.dot(ng) > 0.0 => n,
+        _ => ns,
+    }
+}
+
+/// `v` normalised, or `None` when that gives no finite unit vector: the
+/// same numbers as glam's `try_normalize` (`v` times the reciprocal of its
+/// length), with the check on the reciprocal made by two comparisons
+/// instead of a test of its bits.
+#[inline(always)]
+pub(crate) fn try_unit(v: Vec3) -> Option<Vec3> {
+    let rcp = v.length_recip();
+    (rcp > 0.0 && rcp < f32::INFINITY).then(|| v * rcp)
 }
 
 /// `w a + u b + v c` for corner values `[a, b, c]` and barycentrics

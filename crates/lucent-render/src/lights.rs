@@ -112,7 +112,7 @@ impl LightSample {
     /// the distance to the light (issue 20: 8% of a Cornell box's light lost
     /// at scale 1e-3, ten box sizes away). A directional light gives `wi`
     /// and an infinite distance; `None` when the ray has no direction.
-    #[inline]
+    #[inline(always)]
     pub fn shadow_ray(&self, origin: Vec3) -> Option<(Ray, f32)> {
         if !self.distance.is_finite() {
             return Some((Ray::new(origin, self.wi), f32::INFINITY));

@@ -340,14 +340,15 @@ impl<'a> PathTracer<'a> {
     }
 
     /// The BSDF at `hit` (texture and vertex colour applied) and its
-    /// material; `None` for a material index out of range.
+    /// material; `None` for a material index out of range. An untextured
+    /// material's BSDF is borrowed from the table built once, not copied.
     #[inline(always)]
-    fn bsdf_at(&self, hit: &SurfaceInteraction<'_>) -> Option<(Bsdf, &'a Material)> {
+    fn bsdf_at(&self, hit: &SurfaceInteraction<'_>) -> Option<(BsdfAt<'_>, &'a Material)> {
         let material_index = hit.instance.material as usize;
         let material = self.scene.materials.get(material_index)?;
         let bsdf = match (self.plain_bsdfs.get(material_index), hit.color) {
-            (Some(Some(bsdf)), None) => *bsdf,
-            _ => material.bsdf_at(hit.uv, hit.color),
+            (Some(Some(bsdf)), None) => BsdfAt::Plain(bsdf),
+            _ => BsdfAt::Varying(material.bsdf_at(hit.uv, hit.color)),
         };
         Some((bsdf, material))
     }
@@ -383,6 +384,24 @@ impl<'a> PathTracer<'a> {
         match self.flat {
             Some(flat) => flat.occluded(ray, t_max),
             None => self.scene.bvh.occluded(ray, t_max),
+        }
+    }
+}
+
+/// The BSDF at a hit: borrowed when the material's is the same everywhere,
+/// built for the hit otherwise.
+enum BsdfAt<'a> {
+    Plain(&'a Bsdf),
+    Varying(Bsdf),
+}
+
+impl std::ops::Deref for BsdfAt<'_> {
+    type Target = Bsdf;
+    #[inline(always)]
+    fn deref(&self) -> &Bsdf {
+        match self {
+            BsdfAt::Plain(b) => b,
+            BsdfAt::Varying(b) => b,
         }
     }
 }
