@@ -254,6 +254,10 @@ impl<'a> PathTracer<'a> {
                 break;
             };
 
+            // The hit point pushed off the surface to the side a shadow ray
+            // left into, kept for the next segment if it leaves there too.
+            let mut lifted: Option<(bool, Vec3)> = None;
+
             // Next-event estimation.
             if !bsdf.is_delta()
                 && let Some(ls) = lights.sample(hit.p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
@@ -262,8 +266,9 @@ impl<'a> PathTracer<'a> {
                 let (f, bsdf_pdf) = bsdf.eval_pdf(wo_unit, wi);
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
-                    let side = if ls.wi.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
-                    let origin = hit.offset(hit.p, side);
+                    let out = ls.wi.dot(hit.ng) >= 0.0;
+                    let origin = hit.offset(hit.p, if out { hit.ng } else { -hit.ng });
+                    lifted = Some((out, origin));
                     if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
                         && !self.occluded::<MASKED>(&shadow_ray, t_max)
                     {
@@ -303,8 +308,11 @@ impl<'a> PathTracer<'a> {
                 stats.reflection += 1;
             }
             let out = wi.dot(hit.ng) >= 0.0;
-            let side = if out { hit.ng } else { -hit.ng };
-            ray = Ray::new(hit.offset(hit.p, side), wi);
+            let origin = match lifted {
+                Some((side, origin)) if side == out => origin,
+                _ => hit.offset(hit.p, if out { hit.ng } else { -hit.ng }),
+            };
+            ray = Ray::new(origin, wi);
             prev_p = hit.p;
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
