@@ -225,14 +225,15 @@ impl<'a> PathTracer<'a> {
             if depth - free + 1 >= self.max_depth {
                 if AOV
                     && rec.pending()
-                    && let Some((bsdf, material)) = self.bsdf_at(&hit)
+                    && let Some((bsdf, material)) = self.bsdf_at(&hit, &mut None)
                 {
                     let n = hit.mapped_normal(material);
                     rec.surface(aov, sh.t, facing(n, ray.dir), bsdf.albedo(), bsdf.is_delta());
                 }
                 break;
             }
-            let Some((bsdf, material)) = self.bsdf_at(&hit) else {
+            let mut varying = None;
+            let Some((bsdf, material)) = self.bsdf_at(&hit, &mut varying) else {
                 break;
             };
             let shading_normal = hit.mapped_normal(material);
@@ -349,14 +350,19 @@ impl<'a> PathTracer<'a> {
 
     /// The BSDF at `hit` (texture and vertex colour applied) and its
     /// material; `None` for a material index out of range. An untextured
-    /// material's BSDF is borrowed from the table built once, not copied.
+    /// material's BSDF is borrowed from the table built once, not copied;
+    /// one that varies is built into `slot`.
     #[inline(always)]
-    fn bsdf_at(&self, hit: &SurfaceInteraction<'_>) -> Option<(BsdfAt<'_>, &'a Material)> {
+    fn bsdf_at<'s>(
+        &'s self,
+        hit: &SurfaceInteraction<'_>,
+        slot: &'s mut Option<Bsdf>,
+    ) -> Option<(&'s Bsdf, &'a Material)> {
         let material_index = hit.instance.material as usize;
         let material = self.scene.materials.get(material_index)?;
         let bsdf = match (self.plain_bsdfs.get(material_index), hit.color) {
-            (Some(Some(bsdf)), None) => BsdfAt::Plain(bsdf),
-            _ => BsdfAt::Varying(material.bsdf_at(hit.uv, hit.color)),
+            (Some(Some(bsdf)), None) => bsdf,
+            _ => &*slot.insert(material.bsdf_at(hit.uv, hit.color)),
         };
         Some((bsdf, material))
     }
@@ -392,24 +398,6 @@ impl<'a> PathTracer<'a> {
         match self.flat {
             Some(flat) => flat.occluded(ray, t_max),
             None => self.scene.bvh.occluded(ray, t_max),
-        }
-    }
-}
-
-/// The BSDF at a hit: borrowed when the material's is the same everywhere,
-/// built for the hit otherwise.
-enum BsdfAt<'a> {
-    Plain(&'a Bsdf),
-    Varying(Bsdf),
-}
-
-impl std::ops::Deref for BsdfAt<'_> {
-    type Target = Bsdf;
-    #[inline(always)]
-    fn deref(&self) -> &Bsdf {
-        match self {
-            BsdfAt::Plain(b) => b,
-            BsdfAt::Varying(b) => b,
         }
     }
 }

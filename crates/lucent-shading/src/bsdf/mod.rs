@@ -47,18 +47,22 @@ mod stats;
 mod tests;
 
 use crate::optics::{fresnel_dielectric, refract};
-use lucent_geom::{Vec2, Vec3};
+use lucent_geom::{Mat3A, Vec2, Vec3, Vec3A};
 pub use pbr::dielectric_f0;
 
 /// Orthonormal shading frame; local z is the shading normal.
+///
+/// Kept as two 3x3 matrices in four-wide registers, the frame's axes as
+/// columns and their transpose, so that both changes of coordinates are
+/// three vector products and two sums. Each lane then makes exactly the
+/// products and sums, in the same order, of a dot product with an axis
+/// (local) or of the axes scaled and summed (world) one float at a time.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
-    /// Tangent (local x).
-    pub t: Vec3,
-    /// Bitangent (local y).
-    pub b: Vec3,
-    /// Normal (local z).
-    pub n: Vec3,
+    /// Columns: tangent, bitangent, normal.
+    world_from_local: Mat3A,
+    /// Its transpose.
+    local_from_world: Mat3A,
 }
 
 impl Frame {
@@ -71,23 +75,50 @@ impl Frame {
         let sign = 1f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
         let xy = n.x * n.y * a;
+        let t = Vec3::new(1.0 + sign * n.x * n.x * a, sign * xy, -sign * n.x);
+        let b = Vec3::new(xy, sign + n.y * n.y * a, -n.y);
+        // Both matrices straight from the nine numbers: cheaper than a
+        // four-wide transpose.
         Frame {
-            t: Vec3::new(1.0 + sign * n.x * n.x * a, sign * xy, -sign * n.x),
-            b: Vec3::new(xy, sign + n.y * n.y * a, -n.y),
-            n,
+            world_from_local: Mat3A::from_cols(t.into(), b.into(), n.into()),
+            local_from_world: Mat3A::from_cols(
+                Vec3A::new(t.x, b.x, n.x),
+                Vec3A::new(t.y, b.y, n.y),
+                Vec3A::new(t.z, b.z, n.z),
+            ),
         }
     }
 
-    /// World direction `v` in this frame's coordinates.
+    /// Tangent (local x).
     #[inline]
-    pub fn to_local(&self, v: Vec3) -> Vec3 {
-        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    pub fn t(&self) -> Vec3 {
+        self.world_from_local.x_axis.into()
     }
 
-    /// Local direction `v` back in world coordinates.
+    /// Bitangent (local y).
+    #[inline]
+    pub fn b(&self) -> Vec3 {
+        self.world_from_local.y_axis.into()
+    }
+
+    /// Normal (local z).
+    #[inline]
+    pub fn n(&self) -> Vec3 {
+        self.world_from_local.z_axis.into()
+    }
+
+    /// World direction `v` in this frame's coordinates: its dot products
+    /// with the tangent, bitangent and normal.
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        (self.local_from_world * Vec3A::from(v)).into()
+    }
+
+    /// Local direction `v` back in world coordinates: `t v.x + b v.y +
+    /// n v.z`.
     #[inline]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
-        self.t * v.x + self.b * v.y + self.n * v.z
+        (self.world_from_local * Vec3A::from(v)).into()
     }
 }
 
@@ -157,6 +188,19 @@ pub struct Bsdf {
     /// Cumulative lobe-selection probabilities, in lobe order; all zero for
     /// a black BSDF.
     cdf: [f32; 4],
+    /// What the lobes amount to, decided whenever the selection is set.
+    kind: Kind,
+}
+
+/// The cases of a mixture the path tracer asks about at every vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// Every lobe with weight is a delta (or none has weight).
+    Delta,
+    /// All the selection probability is on an uncoupled Lambertian lobe.
+    Diffuse,
+    /// Anything else.
+    Mixed,
 }
 
 /// Weights as colours: NaN, infinite and negative components become 0.
@@ -167,16 +211,20 @@ fn clean(v: Vec3) -> Vec3 {
 }
 
 /// A usable unit direction with non-zero z, or `None`: `v` times the
-/// reciprocal of its length (glam's `normalize_or_zero`, whose validity
-/// test on the reciprocal is made here by two comparisons instead of a test
-/// of its bits).
+/// reciprocal of its length, as glam's `normalize_or_zero` gives it.
+///
+/// glam keeps the reciprocal when it is finite and positive, a test the
+/// compiler makes on its bits; the same test on the squared length is two
+/// comparisons: `1 / sqrt(l2)` is finite and positive exactly when
+/// `0 < l2 <= f32::MAX` (NaN fails both; the smallest positive `l2`,
+/// 2^-149, still has a finite reciprocal root).
 #[inline]
 fn unit(v: Vec3) -> Option<Vec3> {
-    let rcp = v.length_recip();
-    if !(rcp > 0.0 && rcp < f32::INFINITY) {
+    let l2 = v.dot(v);
+    if !(l2 > 0.0 && l2 <= f32::MAX) {
         return None;
     }
-    let u = v * rcp;
+    let u = v * (1.0 / l2.sqrt());
     (u.z != 0.0).then_some(u)
 }
 
@@ -265,7 +313,9 @@ impl Bsdf {
             f90: 1.0,
             coupled_f0: -1.0,
             cdf,
+            kind: Kind::Mixed,
         }
+        .classified()
     }
 
     /// The glTF 2.0 metallic-roughness BRDF (specification, appendix B),
@@ -333,6 +383,25 @@ impl Bsdf {
     /// `w` (a lobe without weight must get zero).
     fn set_selection(&mut self, w: [f32; 4]) {
         self.cdf = selection_cdf(w.map(|x| if x.is_finite() && x > 0.0 { x } else { 0.0 }));
+        *self = self.classified();
+    }
+
+    /// The mixture with its `kind` set from its lobes and selection.
+    fn classified(mut self) -> Bsdf {
+        let delta = self.prob(DIFFUSE) == 0.0
+            && self.prob(GLOSSY) == 0.0
+            && (self.prob(CONDUCTOR) == 0.0 || self.smooth_conductor());
+        // All selection on the diffuse lobe: the others are then skipped by
+        // `eval`, `pdf` and `sample` alike (their probabilities are 0).
+        let diffuse = self.cdf[DIFFUSE] == 1.0 && self.coupled_f0 < 0.0;
+        self.kind = if delta {
+            Kind::Delta
+        } else if diffuse {
+            Kind::Diffuse
+        } else {
+            Kind::Mixed
+        };
+        self
     }
 
     /// The conductor lobe's Fresnel term at `c = |wo.h|`.
@@ -416,10 +485,9 @@ impl Bsdf {
     /// True when every lobe with weight is a delta: next-event estimation
     /// is pointless, and `eval` and `pdf` are zero everywhere. (A black
     /// BSDF counts as delta too.)
+    #[inline]
     pub fn is_delta(&self) -> bool {
-        self.prob(DIFFUSE) == 0.0
-            && self.prob(GLOSSY) == 0.0
-            && (self.prob(CONDUCTOR) == 0.0 || self.smooth_conductor())
+        self.kind == Kind::Delta
     }
 
     /// `f(wo, wi) |cos theta_i|` summed over the non-delta lobes (zero for
@@ -446,7 +514,7 @@ impl Bsdf {
     /// every other lobe is skipped by `eval`, `pdf` and `sample` too.
     #[inline]
     fn only_diffuse(&self) -> bool {
-        self.cdf[DIFFUSE] == 1.0 && self.coupled_f0 < 0.0
+        self.kind == Kind::Diffuse
     }
 
     /// `eval_unit` and `pdf_unit` of a BSDF that is `only_diffuse`, with

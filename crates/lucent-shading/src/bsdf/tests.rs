@@ -43,13 +43,13 @@ fn frames_are_orthonormal_and_round_trip() {
     }
     for n in normals {
         let f = Frame::from_normal(n);
-        for (a, b) in [(f.t, f.b), (f.b, f.n), (f.n, f.t)] {
+        for (a, b) in [(f.t(), f.b()), (f.b(), f.n()), (f.n(), f.t())] {
             assert!(a.dot(b).abs() < 1e-5, "{n}");
         }
-        for v in [f.t, f.b, f.n] {
+        for v in [f.t(), f.b(), f.n()] {
             assert!((v.length() - 1.0).abs() < 1e-5, "{n}");
         }
-        assert!(f.t.cross(f.b).abs_diff_eq(f.n, 1e-5), "right-handed at {n}");
+        assert!(f.t().cross(f.b()).abs_diff_eq(f.n(), 1e-5), "right-handed at {n}");
         let w = Vec3::new(0.3, -0.5, 0.8);
         assert!(f.to_world(f.to_local(w)).abs_diff_eq(w, 1e-5));
         assert!(f.to_local(n).abs_diff_eq(Vec3::Z, 1e-5));
@@ -406,4 +406,36 @@ fn the_one_lobe_paths_give_the_general_codes_bits() {
     assert!(Material::default().bsdf(Vec3::ONE).only_diffuse() && !plastic.bsdf(Vec3::ONE).only_diffuse());
     assert!(!Bsdf::metallic_roughness(Vec3::ONE, 0.0, 0.5, 0.0, 1.5).only_diffuse());
     assert!(!Bsdf::mirror(Vec3::ONE).only_diffuse());
+}
+
+#[test]
+fn frame_changes_of_coordinates_give_the_dot_products_bits() {
+    // The frame multiplies four-wide matrices; every lane must make the
+    // float-at-a-time products and sums in their order.
+    let mut rng = Pcg32::new(3, 5);
+    let mut v = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+    let bits = |a: Vec3| a.to_array().map(f32::to_bits);
+    for i in 0..10_000 {
+        let n = match i % 4 {
+            0 => v().normalize_or(Vec3::Z),
+            1 => v(),
+            2 => Vec3::new(0.0, -0.0, -1.0),
+            _ => Vec3::new(v().x, 0.0, -0.0),
+        };
+        let f = Frame::from_normal(n);
+        let (t, b) = (f.t(), f.b());
+        // The basis of Duff et al. as it was computed float by float.
+        let sign = 1f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let xy = n.x * n.y * a;
+        assert_eq!(
+            bits(t),
+            bits(Vec3::new(1.0 + sign * n.x * n.x * a, sign * xy, -sign * n.x))
+        );
+        assert_eq!(bits(b), bits(Vec3::new(xy, sign + n.y * n.y * a, -n.y)));
+        assert_eq!(bits(f.n()), bits(n));
+        let w = v() * 3.0;
+        assert_eq!(bits(f.to_local(w)), bits(Vec3::new(w.dot(t), w.dot(b), w.dot(n))));
+        assert_eq!(bits(f.to_world(w)), bits(t * w.x + b * w.y + n * w.z));
+    }
 }
