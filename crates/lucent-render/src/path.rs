@@ -412,7 +412,9 @@ fn facing(n: Vec3, dir: Vec3) -> Vec3 {
 #[inline]
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let (a, b) = (pdf * pdf, other * other);
-    if a + b > 0.0 && a.is_finite() { a / (a + b) } else { 1.0 }
+    // `a` is a square: finite exactly when it is at most f32::MAX (NaN
+    // fails the comparison too).
+    if a + b > 0.0 && a <= f32::MAX { a / (a + b) } else { 1.0 }
 }
 
 #[cfg(test)]

@@ -604,9 +604,16 @@ impl Bsdf {
             if pdf <= 0.0 {
                 return None;
             }
-            return finite(BsdfSample {
+            // `finite`'s test, on what can fail it here: `wi` is a unit
+            // vector and `pdf` at most 1 / pi; the weight (`f` over `pdf`,
+            // both non-negative) is not NaN but overflows for a weight
+            // near f32::MAX.
+            let weight = f / pdf;
+            let finite = weight.x <= f32::MAX && weight.y <= f32::MAX && weight.z <= f32::MAX;
+            debug_assert_eq!(finite, wi.is_finite() && weight.is_finite() && pdf.is_finite());
+            return finite.then_some(BsdfSample {
                 wi,
-                weight: f / pdf,
+                weight,
                 pdf,
                 delta: false,
             });
