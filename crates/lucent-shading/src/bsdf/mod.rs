@@ -588,8 +588,10 @@ impl Bsdf {
     }
 
     /// [`Bsdf::sample`] for a direction already normalised: the same
-    /// sample.
-    #[inline]
+    /// sample. Inlined: the plain Lambertian case is a few dozen
+    /// instructions, and a call makes the caller keep its state in memory;
+    /// other mixtures are a call away.
+    #[inline(always)]
     pub fn sample_local(&self, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let wo = wo.0;
         if self.only_diffuse() {
@@ -623,6 +625,7 @@ impl Bsdf {
 
     /// The general `sample`: a lobe picked by the selection probabilities,
     /// a direction from it, the mixture's density and weight.
+    #[inline(never)]
     fn sample_mixture(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let k = self.cdf.iter().position(|&c| u_lobe < c)?;
         let p = self.prob(k);
