@@ -68,6 +68,9 @@ pub struct EnvLight {
     /// The integral of luminance over the sphere by the cell weights,
     /// intensity included (power per unit cross-section).
     luminance_integral: f32,
+    /// For a map of one texel (the constant background), the density,
+    /// which is then the same in every direction (see [`EnvLight::pdf`]).
+    uniform_pdf: Option<f32>,
 }
 
 impl EnvLight {
@@ -145,7 +148,7 @@ impl EnvLight {
         if let Some(last) = row_cdf.last_mut() {
             *last = 1.0;
         }
-        Some(EnvLight {
+        let mut light = EnvLight {
             map,
             intensity,
             world_from_map,
@@ -156,7 +159,12 @@ impl EnvLight {
             column_cdf,
             inv_total: (1.0 / total) as f32,
             luminance_integral: (total * f64::from(intensity)) as f32,
-        })
+            uniform_pdf: None,
+        };
+        if light.map.width() == 1 && light.map.height() == 1 {
+            light.uniform_pdf = Some(light.cell_pdf(Vec3::Y));
+        }
+        Some(light)
     }
 
     /// Turns the map to `rotation_deg` about +y (the distribution lives in
@@ -178,8 +186,24 @@ impl EnvLight {
     }
 
     /// Solid-angle density with which [`EnvLight::sample`] picks `dir`.
+    ///
+    /// A map of one texel has one cell whose four corners are that texel,
+    /// spanning the sphere (`cos0 = 1 > cos1 = -1`): the bilinear
+    /// luminance interpolates equal numbers, `l + t (l - l) = l` exactly
+    /// for every finite fraction, so the density is the same number in
+    /// every direction, kept from when the light was built; only a NaN
+    /// height (a NaN fraction) gives 0, as the cell lookup would.
     #[inline]
     pub fn pdf(&self, dir: Vec3) -> f32 {
+        match self.uniform_pdf {
+            Some(pdf) if !(self.map_from_world * dir).y.is_nan() => pdf,
+            _ => self.cell_pdf(dir),
+        }
+    }
+
+    /// [`EnvLight::pdf`] by the cell `dir` falls in.
+    #[inline]
+    fn cell_pdf(&self, dir: Vec3) -> f32 {
         let d = self.map_from_world * dir;
         let (c, r, fx, _) = self.map.cell(direction_to_uv(d));
         let (theta0, theta1) = row_thetas(r, self.rows);

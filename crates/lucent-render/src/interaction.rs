@@ -12,7 +12,7 @@
 
 use crate::RenderInstance;
 use lucent_accel::SceneHit;
-use lucent_geom::{TriMesh, Vec2, Vec3, Vec4, offset_ray_origin_scaled, triangle_normal};
+use lucent_geom::{TriMesh, Vec2, Vec3, Vec3A, Vec4, offset_ray_origin_scaled};
 use std::sync::Arc;
 
 /// A point on an instance's triangle, in render space.
@@ -69,14 +69,21 @@ impl<'a> SurfaceInteraction<'a> {
         let instance = instances.get(hit.instance as usize)?;
         let mesh = meshes.get(instance.mesh as usize)?;
         let idx = *mesh.indices().get(hit.prim as usize)?;
+        // Four-wide registers (Vec3A) throughout: each lane does the very
+        // operations, in the same order, that the three-float code did
+        // component by component, so the numbers are the same.
         let bary = Vec3::new(1.0 - hit.u - hit.v, hit.u, hit.v);
-        let obj = mesh.triangle(hit.prim as usize);
-        let corners = instance.corners_to_render(obj);
+        let positions = mesh.positions();
+        let [a, b, c] = idx.map(|i| Vec3A::from(positions[i as usize]));
+        let xf = &instance.render_from_object;
+        let corners = [a, b, c].map(|p| xf.transform_point3a(p));
         let to_render = instance.normal_render_from_object;
-        let ng = (to_render * triangle_normal(obj)).try_normalize()?;
+        // `triangle_normal`: (b - a) x (c - a).
+        let ng = try_unit(to_render * (b - a).cross(c - a))?;
         let reads = instance.reads;
         let normals = mesh.normals().filter(|_| reads.normals);
         let (ns, corner_normals) = if CORNER_NORMALS {
+            let ng = Vec3::from(ng);
             let corner_normals = normals.map(|n| {
                 idx.map(|i| {
                     let w = (to_render * n[i as usize]).normalize_or_zero();
@@ -90,9 +97,9 @@ impl<'a> SurfaceInteraction<'a> {
             (ns, corner_normals)
         } else {
             let ns = normals
-                .and_then(|n| (to_render * barycentric(idx.map(|i| n[i as usize]), bary)).try_normalize())
+                .and_then(|n| try_unit(to_render * barycentric(idx.map(|i| Vec3A::from(n[i as usize])), bary)))
                 .unwrap_or(ng);
-            (ns, None)
+            (Vec3::from(ns), None)
         };
         let uv = mesh
             .uvs()
@@ -107,9 +114,11 @@ impl<'a> SurfaceInteraction<'a> {
             let dir = instance.render_from_object.transform_vector3(t4.truncate());
             dir.extend(if t4.w < 0.0 { -1.0 } else { 1.0 })
         });
+        let p = barycentric(corners, bary);
+        let corners = corners.map(Vec3::from);
         Some(SurfaceInteraction {
-            p: barycentric(corners, bary),
-            ng,
+            p: Vec3::from(p),
+            ng: Vec3::from(ng),
             ns,
             bary,
             corners,
@@ -143,18 +152,15 @@ impl<'a> SurfaceInteraction<'a> {
     /// and the bitangent `w ns x t`), or `ns` unchanged without a map,
     /// UVs or a tangent, or where the bent normal would face the other
     /// side of the surface from `ns`.
-    #[inline]
+    ///
+    /// Without a tangent (an instance whose material has no normal map)
+    /// this is `ns`, decided inline; only a bent normal costs a call, so the
+    /// interaction need not be kept in memory for it.
+    #[inline(always)]
     pub fn mapped_normal(&self, material: &lucent_shading::Material) -> Vec3 {
-        let (Some(t), Some(local)) = (self.tangent, material.tangent_space_normal(self.uv)) else {
-            return self.ns;
-        };
-        let Some(tangent) = (t.truncate() - self.ns * self.ns.dot(t.truncate())).try_normalize() else {
-            return self.ns;
-        };
-        let bitangent = t.w * self.ns.cross(tangent);
-        match (tangent * local.x + bitangent * local.y + self.ns * local.z).try_normalize() {
-            Some(n) if n.dot(self.ng) * self.ns.dot(self.ng) > 0.0 => n,
-            _ => self.ns,
+        match self.tangent {
+            None => self.ns,
+            Some(t) => bent_normal(self.ns, self.ng, t, self.uv, material),
         }
     }
 
@@ -165,6 +171,37 @@ impl<'a> SurfaceInteraction<'a> {
     pub fn offset(&self, q: Vec3, n: Vec3) -> Vec3 {
         offset_ray_origin_scaled(q, n, self.magnitude)
     }
+}
+
+/// [`SurfaceInteraction::mapped_normal`] for an interaction with tangent `t`.
+#[inline(never)]
+fn bent_normal(ns: Vec3, ng: Vec3, t: Vec4, uv: Option<Vec2>, material: &lucent_shading::Material) -> Vec3 {
+    let Some(local) = material.tangent_space_normal(uv) else {
+        return ns;
+    };
+    let Some(tangent) = (t.truncate() - ns * ns.dot(t.truncate())).try_normalize() else {
+        return ns;
+    };
+    let bitangent = t.w * ns.cross(tangent);
+    match (tangent * local.x + bitangent * local.y + ns * local.z).try_normalize() {
+        Some(n) if n.dot(ng) * ns.dot(ng) > 0.0 => n,
+        _ => ns,
+    }
+}
+
+/// `v` normalised, or `None` when that gives no finite unit vector: the
+/// same numbers as glam's `try_normalize` (`v` times the reciprocal of its
+/// length).
+///
+/// glam accepts the reciprocal when it is finite and positive, which the
+/// compiler turns into integer tests of its bits; this tests the squared
+/// length instead, two comparisons: `1 / sqrt(l2)` is finite and positive
+/// exactly when `0 < l2 <= f32::MAX` (NaN fails both; the smallest positive
+/// `l2`, 2^-149, still has a finite reciprocal root, 2^74.5).
+#[inline(always)]
+pub(crate) fn try_unit(v: Vec3A) -> Option<Vec3A> {
+    let l2 = v.dot(v);
+    (l2 > 0.0 && l2 <= f32::MAX).then(|| v * (1.0 / l2.sqrt()))
 }
 
 /// `w a + u b + v c` for corner values `[a, b, c]` and barycentrics
@@ -315,5 +352,62 @@ mod tests {
             ..instances[0]
         }];
         assert!(SurfaceInteraction::from_hit::<true>(&meshes, &dangling, &hit(0, 0)).is_none());
+    }
+
+    #[test]
+    fn hits_give_the_three_float_formulas_bits() {
+        // from_hit works in four-wide registers; the point, the normals and
+        // the magnitude must be what the float-by-float formulas give.
+        use lucent_geom::{Pcg32, Quat, triangle_normal};
+        let mut rng = Pcg32::new(17, 4);
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        let mut checked = 0;
+        for i in 0..2_000 {
+            let mut u = || rng.next_f32();
+            let mut r = [0.0f32; 21];
+            r.iter_mut().for_each(|x| *x = u());
+            let v = |k: usize| Vec3::new(r[k], r[k + 1], r[k + 2]) * 8.0 - 4.0;
+            let (a, b, c) = (v(0), v(3), v(6));
+            let normals = vec![v(9), v(12), v(15) * 1e-3];
+            let Ok(mesh) = TriMesh::new(vec![a, b, c], vec![[0, 1, 2]]).and_then(|m| m.with_normals(normals.clone()))
+            else {
+                continue;
+            };
+            let xf = Affine3A::from_scale_rotation_translation(
+                v(0).abs() + 0.1,
+                Quat::from_rotation_x(r[18] * 6.0) * Quat::from_rotation_y(r[19] * 6.0),
+                v(3) * 100.0,
+            );
+            let instances = [placed(xf)];
+            let (hu, hv) = (r[20] * 0.5, r[2] * 0.5);
+            let h = SceneHit {
+                t: 1.0,
+                u: hu,
+                v: hv,
+                prim: 0,
+                instance: 0,
+            };
+            let meshes = [Arc::new(mesh)];
+            let Some(si) = SurfaceInteraction::from_hit::<false>(&meshes, &instances, &h) else {
+                continue;
+            };
+            let bary = Vec3::new(1.0 - hu - hv, hu, hv);
+            let corners = [a, b, c].map(|p| xf.transform_point3(p));
+            let to_render = instances[0].normal_render_from_object;
+            let ng = (to_render * triangle_normal([a, b, c]))
+                .try_normalize()
+                .unwrap_or_else(|| panic!("normal {i}"));
+            let ns = (to_render * barycentric([normals[0], normals[1], normals[2]], bary))
+                .try_normalize()
+                .unwrap_or(ng);
+            assert_eq!(bits(si.p), bits(barycentric(corners, bary)), "{i}");
+            assert_eq!(bits(si.ng), bits(ng), "{i}");
+            assert_eq!(bits(si.ns), bits(ns), "{i}");
+            assert_eq!(si.corners.map(bits), corners.map(bits), "{i}");
+            let magnitude = corners.iter().fold(0.0f32, |m, c| m.max(c.abs().max_element()));
+            assert_eq!(si.magnitude.to_bits(), magnitude.to_bits(), "{i}");
+            checked += 1;
+        }
+        assert!(checked > 1_900, "{checked}");
     }
 }

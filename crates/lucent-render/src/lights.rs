@@ -112,7 +112,7 @@ impl LightSample {
     /// the distance to the light (issue 20: 8% of a Cornell box's light lost
     /// at scale 1e-3, ten box sizes away). A directional light gives `wi`
     /// and an infinite distance; `None` when the ray has no direction.
-    #[inline]
+    #[inline(always)]
     pub fn shadow_ray(&self, origin: Vec3) -> Option<(Ray, f32)> {
         if !self.distance.is_finite() {
             return Some((Ray::new(origin, self.wi), f32::INFINITY));
@@ -129,7 +129,8 @@ impl LightSample {
         };
         let d = target - origin;
         let dist = d.length();
-        (dist > 0.0 && dist.is_finite()).then(|| (Ray::new(origin, d / dist), dist * (1.0 - SHADOW_SHORTEN)))
+        // Positive and finite, tested by comparisons (NaN fails both).
+        (dist > 0.0 && dist <= f32::MAX).then(|| (Ray::new(origin, d / dist), dist * (1.0 - SHADOW_SHORTEN)))
     }
 }
 
@@ -415,7 +416,7 @@ impl LightSet {
         let dist2 = d.length_squared();
         let cos = (e.n.dot(d) / dist2.sqrt()).abs();
         let pdf = p * dist2 / (e.area * cos);
-        if p > 0.0 && pdf.is_finite() && pdf > 0.0 {
+        if p > 0.0 && pdf > 0.0 && pdf <= f32::MAX {
             pdf
         } else {
             0.0
@@ -443,7 +444,8 @@ impl LightSet {
             let d = point - from;
             let dist2 = d.length_squared();
             let dist = dist2.sqrt();
-            if !dist.is_finite() || dist <= 0.0 {
+            // Positive and finite, tested by comparisons (NaN fails both).
+            if !(dist > 0.0 && dist <= f32::MAX) {
                 return None;
             }
             let wi = d / dist;

@@ -65,7 +65,7 @@ use crate::interaction::SurfaceInteraction;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3};
-use lucent_shading::{Bsdf, Frame, Material};
+use lucent_shading::{Bsdf, Frame, LocalDir, Material};
 
 /// Highest survival probability of Russian roulette.
 const RR_MAX_SURVIVAL: f32 = 0.95;
@@ -225,14 +225,15 @@ impl<'a> PathTracer<'a> {
             if depth - free + 1 >= self.max_depth {
                 if AOV
                     && rec.pending()
-                    && let Some((bsdf, material)) = self.bsdf_at(&hit)
+                    && let Some((bsdf, material)) = self.bsdf_at(&hit, &mut None)
                 {
                     let n = hit.mapped_normal(material);
                     rec.surface(aov, sh.t, facing(n, ray.dir), bsdf.albedo(), bsdf.is_delta());
                 }
                 break;
             }
-            let Some((bsdf, material)) = self.bsdf_at(&hit) else {
+            let mut varying = None;
+            let Some((bsdf, material)) = self.bsdf_at(&hit, &mut varying) else {
                 break;
             };
             let shading_normal = hit.mapped_normal(material);
@@ -247,24 +248,35 @@ impl<'a> PathTracer<'a> {
             }
             let frame = Frame::from_normal(shading_normal);
             let wo = frame.to_local(-ray.dir);
+            // Normalised once for every BSDF call below; a direction in the
+            // surface plane scatters nothing (no light sample could count
+            // and no BSDF sample exists), so the path ends there.
+            let Some(wo_unit) = LocalDir::new(wo) else {
+                break;
+            };
+
+            // The hit point pushed off the surface to the side a shadow ray
+            // left into, kept for the next segment if it leaves there too.
+            let mut lifted: Option<(bool, Vec3)> = None;
 
             // Next-event estimation.
             if !bsdf.is_delta()
                 && let Some(ls) = lights.sample(hit.p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                && let Some(wi) = LocalDir::new(frame.to_local(ls.wi))
             {
-                let wi = frame.to_local(ls.wi);
-                let f = bsdf.eval(wo, wi);
+                let (f, bsdf_pdf) = bsdf.eval_pdf(wo_unit, wi);
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
-                    let side = if ls.wi.dot(hit.ng) >= 0.0 { hit.ng } else { -hit.ng };
-                    let origin = hit.offset(hit.p, side);
+                    let out = ls.wi.dot(hit.ng) >= 0.0;
+                    let origin = hit.offset(hit.p, if out { hit.ng } else { -hit.ng });
+                    lifted = Some((out, origin));
                     if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
                         && !self.occluded::<MASKED>(&shadow_ray, t_max)
                     {
                         let w = if ls.delta {
                             1.0
                         } else {
-                            power_heuristic(ls.pdf, bsdf.pdf(wo, wi))
+                            power_heuristic(ls.pdf, bsdf_pdf)
                         };
                         radiance += self.clamped(throughput * f * ls.value * (w / ls.pdf), depth >= 1);
                     }
@@ -273,7 +285,7 @@ impl<'a> PathTracer<'a> {
 
             // BSDF sampling: the next segment.
             let u_lobe = rng.next_f32();
-            let Some(bs) = bsdf.sample(wo, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
+            let Some(bs) = bsdf.sample_local(wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
                 break;
             };
             throughput *= bs.weight;
@@ -297,8 +309,11 @@ impl<'a> PathTracer<'a> {
                 stats.reflection += 1;
             }
             let out = wi.dot(hit.ng) >= 0.0;
-            let side = if out { hit.ng } else { -hit.ng };
-            ray = Ray::new(hit.offset(hit.p, side), wi);
+            let origin = match lifted {
+                Some((side, origin)) if side == out => origin,
+                _ => hit.offset(hit.p, if out { hit.ng } else { -hit.ng }),
+            };
+            ray = Ray::new(origin, wi);
             prev_p = hit.p;
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
@@ -334,14 +349,20 @@ impl<'a> PathTracer<'a> {
     }
 
     /// The BSDF at `hit` (texture and vertex colour applied) and its
-    /// material; `None` for a material index out of range.
+    /// material; `None` for a material index out of range. An untextured
+    /// material's BSDF is borrowed from the table built once, not copied;
+    /// one that varies is built into `slot`.
     #[inline(always)]
-    fn bsdf_at(&self, hit: &SurfaceInteraction<'_>) -> Option<(Bsdf, &'a Material)> {
+    fn bsdf_at<'s>(
+        &'s self,
+        hit: &SurfaceInteraction<'_>,
+        slot: &'s mut Option<Bsdf>,
+    ) -> Option<(&'s Bsdf, &'a Material)> {
         let material_index = hit.instance.material as usize;
         let material = self.scene.materials.get(material_index)?;
         let bsdf = match (self.plain_bsdfs.get(material_index), hit.color) {
-            (Some(Some(bsdf)), None) => *bsdf,
-            _ => material.bsdf_at(hit.uv, hit.color),
+            (Some(Some(bsdf)), None) => bsdf,
+            _ => &*slot.insert(material.bsdf_at(hit.uv, hit.color)),
         };
         Some((bsdf, material))
     }
@@ -391,7 +412,9 @@ fn facing(n: Vec3, dir: Vec3) -> Vec3 {
 #[inline]
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let (a, b) = (pdf * pdf, other * other);
-    if a + b > 0.0 && a.is_finite() { a / (a + b) } else { 1.0 }
+    // `a` is a square: finite exactly when it is at most f32::MAX (NaN
+    // fails the comparison too).
+    if a + b > 0.0 && a <= f32::MAX { a / (a + b) } else { 1.0 }
 }
 
 #[cfg(test)]

@@ -249,3 +249,38 @@ fn a_render_scene_turns_its_map_in_place() {
     assert!(rs.environment_radiance(Vec3::X).x > 0.5 && rs.environment_radiance(Vec3::Z) == Vec3::ZERO);
     assert!(rs.light_set.pdf_environment(Vec3::X) > 0.0 && rs.light_set.pdf_environment(Vec3::Z) == 0.0);
 }
+
+#[test]
+fn a_one_texel_map_has_the_density_its_cell_gives_everywhere() {
+    // The constant background's density is kept as one number; the cell
+    // lookup must give that very number in every direction, non-unit and
+    // non-finite ones included.
+    let mut rng = Pcg32::new(21, 2);
+    for (texel, rotation) in [
+        (Vec3::new(0.02, 0.02, 0.03), 0.0),
+        (Vec3::ONE, 37.0),
+        (Vec3::splat(1e-30), -90.0),
+    ] {
+        let light = light(map(1, 1, |_, _| texel), rotation);
+        let Some(uniform) = light.uniform_pdf else {
+            panic!("one texel")
+        };
+        let mut dirs = vec![
+            Vec3::Y,
+            -Vec3::Y,
+            Vec3::X,
+            Vec3::ZERO,
+            Vec3::splat(f32::INFINITY),
+            Vec3::new(f32::NAN, 0.0, 1.0),
+            Vec3::new(0.0, f32::NAN, 0.0),
+        ];
+        for _ in 0..10_000 {
+            dirs.push((Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0) * 3.0);
+        }
+        for d in dirs {
+            assert_eq!(light.pdf(d).to_bits(), light.cell_pdf(d).to_bits(), "{d}");
+        }
+        assert!(uniform > 0.0);
+    }
+    assert!(light(gradient(), 0.0).uniform_pdf.is_none());
+}

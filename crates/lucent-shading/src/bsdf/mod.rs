@@ -47,18 +47,22 @@ mod stats;
 mod tests;
 
 use crate::optics::{fresnel_dielectric, refract};
-use lucent_geom::{Vec2, Vec3};
+use lucent_geom::{Mat3A, Vec2, Vec3, Vec3A};
 pub use pbr::dielectric_f0;
 
 /// Orthonormal shading frame; local z is the shading normal.
+///
+/// Kept as two 3x3 matrices in four-wide registers, the frame's axes as
+/// columns and their transpose, so that both changes of coordinates are
+/// three vector products and two sums. Each lane then makes exactly the
+/// products and sums, in the same order, of a dot product with an axis
+/// (local) or of the axes scaled and summed (world) one float at a time.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
-    /// Tangent (local x).
-    pub t: Vec3,
-    /// Bitangent (local y).
-    pub b: Vec3,
-    /// Normal (local z).
-    pub n: Vec3,
+    /// Columns: tangent, bitangent, normal.
+    world_from_local: Mat3A,
+    /// Its transpose.
+    local_from_world: Mat3A,
 }
 
 impl Frame {
@@ -71,23 +75,50 @@ impl Frame {
         let sign = 1f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
         let xy = n.x * n.y * a;
+        let t = Vec3::new(1.0 + sign * n.x * n.x * a, sign * xy, -sign * n.x);
+        let b = Vec3::new(xy, sign + n.y * n.y * a, -n.y);
+        // Both matrices straight from the nine numbers: cheaper than a
+        // four-wide transpose.
         Frame {
-            t: Vec3::new(1.0 + sign * n.x * n.x * a, sign * xy, -sign * n.x),
-            b: Vec3::new(xy, sign + n.y * n.y * a, -n.y),
-            n,
+            world_from_local: Mat3A::from_cols(t.into(), b.into(), n.into()),
+            local_from_world: Mat3A::from_cols(
+                Vec3A::new(t.x, b.x, n.x),
+                Vec3A::new(t.y, b.y, n.y),
+                Vec3A::new(t.z, b.z, n.z),
+            ),
         }
     }
 
-    /// World direction `v` in this frame's coordinates.
+    /// Tangent (local x).
     #[inline]
-    pub fn to_local(&self, v: Vec3) -> Vec3 {
-        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    pub fn t(&self) -> Vec3 {
+        self.world_from_local.x_axis.into()
     }
 
-    /// Local direction `v` back in world coordinates.
+    /// Bitangent (local y).
+    #[inline]
+    pub fn b(&self) -> Vec3 {
+        self.world_from_local.y_axis.into()
+    }
+
+    /// Normal (local z).
+    #[inline]
+    pub fn n(&self) -> Vec3 {
+        self.world_from_local.z_axis.into()
+    }
+
+    /// World direction `v` in this frame's coordinates: its dot products
+    /// with the tangent, bitangent and normal.
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        (self.local_from_world * Vec3A::from(v)).into()
+    }
+
+    /// Local direction `v` back in world coordinates: `t v.x + b v.y +
+    /// n v.z`.
     #[inline]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
-        self.t * v.x + self.b * v.y + self.n * v.z
+        (self.world_from_local * Vec3A::from(v)).into()
     }
 }
 
@@ -157,6 +188,19 @@ pub struct Bsdf {
     /// Cumulative lobe-selection probabilities, in lobe order; all zero for
     /// a black BSDF.
     cdf: [f32; 4],
+    /// What the lobes amount to, decided whenever the selection is set.
+    kind: Kind,
+}
+
+/// The cases of a mixture the path tracer asks about at every vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// Every lobe with weight is a delta (or none has weight).
+    Delta,
+    /// All the selection probability is on an uncoupled Lambertian lobe.
+    Diffuse,
+    /// Anything else.
+    Mixed,
 }
 
 /// Weights as colours: NaN, infinite and negative components become 0.
@@ -166,11 +210,57 @@ fn clean(v: Vec3) -> Vec3 {
     Vec3::new(c(v.x), c(v.y), c(v.z))
 }
 
-/// A usable unit direction with non-zero z, or `None`.
+/// A usable unit direction with non-zero z, or `None`: `v` times the
+/// reciprocal of its length, as glam's `normalize_or_zero` gives it.
+///
+/// glam keeps the reciprocal when it is finite and positive, a test the
+/// compiler makes on its bits; the same test on the squared length is two
+/// comparisons: `1 / sqrt(l2)` is finite and positive exactly when
+/// `0 < l2 <= f32::MAX` (NaN fails both; the smallest positive `l2`,
+/// 2^-149, still has a finite reciprocal root).
 #[inline]
 fn unit(v: Vec3) -> Option<Vec3> {
-    let u = v.normalize_or_zero();
+    let l2 = v.dot(v);
+    if !(l2 > 0.0 && l2 <= f32::MAX) {
+        return None;
+    }
+    let u = v * (1.0 / l2.sqrt());
     (u.z != 0.0).then_some(u)
+}
+
+/// A direction in a [`Frame`]'s coordinates as every BSDF call takes it:
+/// unit length, off the surface plane (`z != 0`).
+///
+/// [`Bsdf::eval`], [`Bsdf::pdf`] and [`Bsdf::sample`] normalise their
+/// directions on every call; a caller that makes several calls with one
+/// direction normalises it once into a `LocalDir` and calls
+/// [`Bsdf::eval_pdf`] and [`Bsdf::sample_local`], which give the very same
+/// numbers.
+///
+/// ```
+/// use lucent_shading::{Bsdf, LocalDir, Vec3};
+/// let bsdf = Bsdf::lambertian(Vec3::splat(0.5));
+/// let (wo, wi) = (Vec3::new(0.1, 0.2, 0.9), Vec3::new(-0.3, 0.0, 0.4));
+/// let (Some(lo), Some(li)) = (LocalDir::new(wo), LocalDir::new(wi)) else { unreachable!() };
+/// assert_eq!(bsdf.eval_pdf(lo, li), (bsdf.eval(wo, wi), bsdf.pdf(wo, wi)));
+/// assert!(LocalDir::new(Vec3::X).is_none(), "in the surface plane");
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LocalDir(Vec3);
+
+impl LocalDir {
+    /// `v` normalised, or `None` when it is zero, not finite or lies in the
+    /// surface plane (where every BSDF call gives zero or `None`).
+    #[inline]
+    pub fn new(v: Vec3) -> Option<LocalDir> {
+        unit(v).map(LocalDir)
+    }
+
+    /// The unit vector.
+    #[inline]
+    pub fn get(self) -> Vec3 {
+        self.0
+    }
 }
 
 impl Bsdf {
@@ -223,7 +313,9 @@ impl Bsdf {
             f90: 1.0,
             coupled_f0: -1.0,
             cdf,
+            kind: Kind::Mixed,
         }
+        .classified()
     }
 
     /// The glTF 2.0 metallic-roughness BRDF (specification, appendix B),
@@ -291,6 +383,25 @@ impl Bsdf {
     /// `w` (a lobe without weight must get zero).
     fn set_selection(&mut self, w: [f32; 4]) {
         self.cdf = selection_cdf(w.map(|x| if x.is_finite() && x > 0.0 { x } else { 0.0 }));
+        *self = self.classified();
+    }
+
+    /// The mixture with its `kind` set from its lobes and selection.
+    fn classified(mut self) -> Bsdf {
+        let delta = self.prob(DIFFUSE) == 0.0
+            && self.prob(GLOSSY) == 0.0
+            && (self.prob(CONDUCTOR) == 0.0 || self.smooth_conductor());
+        // All selection on the diffuse lobe: the others are then skipped by
+        // `eval`, `pdf` and `sample` alike (their probabilities are 0).
+        let diffuse = self.cdf[DIFFUSE] == 1.0 && self.coupled_f0 < 0.0;
+        self.kind = if delta {
+            Kind::Delta
+        } else if diffuse {
+            Kind::Diffuse
+        } else {
+            Kind::Mixed
+        };
+        self
     }
 
     /// The conductor lobe's Fresnel term at `c = |wo.h|`.
@@ -374,10 +485,9 @@ impl Bsdf {
     /// True when every lobe with weight is a delta: next-event estimation
     /// is pointless, and `eval` and `pdf` are zero everywhere. (A black
     /// BSDF counts as delta too.)
+    #[inline]
     pub fn is_delta(&self) -> bool {
-        self.prob(DIFFUSE) == 0.0
-            && self.prob(GLOSSY) == 0.0
-            && (self.prob(CONDUCTOR) == 0.0 || self.smooth_conductor())
+        self.kind == Kind::Delta
     }
 
     /// `f(wo, wi) |cos theta_i|` summed over the non-delta lobes (zero for
@@ -387,6 +497,38 @@ impl Bsdf {
             (Some(wo), Some(wi)) => self.eval_unit(wo, wi),
             _ => Vec3::ZERO,
         }
+    }
+
+    /// [`Bsdf::eval`] and [`Bsdf::pdf`] together, for directions already
+    /// normalised: the same two numbers, computed once.
+    #[inline]
+    pub fn eval_pdf(&self, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        if self.only_diffuse() {
+            return self.lambert_eval_pdf(wo.0, wi.0);
+        }
+        (self.eval_unit(wo.0, wi.0), self.pdf_unit(wo.0, wi.0))
+    }
+
+    /// Whether the only lobe `sample` ever picks is a plain (uncoupled)
+    /// Lambertian one: the selection puts all its probability on it, so
+    /// every other lobe is skipped by `eval`, `pdf` and `sample` too.
+    #[inline]
+    fn only_diffuse(&self) -> bool {
+        self.kind == Kind::Diffuse
+    }
+
+    /// `eval_unit` and `pdf_unit` of a BSDF that is `only_diffuse`, with
+    /// their arithmetic: the sums over lobes start from zero (adding a
+    /// non-negative term to 0 gives the term) and the diffuse lobe's
+    /// probability is 1, so each reduces to its one term. Their checks for
+    /// non-finite results always pass here: `d` is at most `1 / pi` for a
+    /// unit `wi`, and the diffuse weight is finite (`clean`).
+    #[inline]
+    fn lambert_eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let d = lobes::lambert_eval(wo, wi);
+        let f = self.diffuse * d;
+        debug_assert!(f.is_finite() && d.is_finite());
+        (f, d)
     }
 
     fn eval_unit(&self, wo: Vec3, wi: Vec3) -> Vec3 {
@@ -442,7 +584,49 @@ impl Bsdf {
     /// direction. `None` when the sample is absorbed (a black BSDF, a lobe
     /// direction below the surface) or the input is degenerate.
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        let wo = unit(wo)?;
+        self.sample_local(LocalDir::new(wo)?, u_lobe, u)
+    }
+
+    /// [`Bsdf::sample`] for a direction already normalised: the same
+    /// sample. Inlined: the plain Lambertian case is a few dozen
+    /// instructions, and a call makes the caller keep its state in memory;
+    /// other mixtures are a call away.
+    #[inline(always)]
+    pub fn sample_local(&self, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let wo = wo.0;
+        if self.only_diffuse() {
+            // The lobe choice of the general code below: the first
+            // cumulative probability (1) above `u_lobe`, none for NaN.
+            let picked = u_lobe < 1.0;
+            if !picked {
+                return None;
+            }
+            let wi = unit(lobes::lambert_sample(wo, u))?;
+            let (f, pdf) = self.lambert_eval_pdf(wo, wi);
+            if pdf <= 0.0 {
+                return None;
+            }
+            // `finite`'s test, on what can fail it here: `wi` is a unit
+            // vector and `pdf` at most 1 / pi; the weight (`f` over `pdf`,
+            // both non-negative) is not NaN but overflows for a weight
+            // near f32::MAX.
+            let weight = f / pdf;
+            let finite = weight.x <= f32::MAX && weight.y <= f32::MAX && weight.z <= f32::MAX;
+            debug_assert_eq!(finite, wi.is_finite() && weight.is_finite() && pdf.is_finite());
+            return finite.then_some(BsdfSample {
+                wi,
+                weight,
+                pdf,
+                delta: false,
+            });
+        }
+        self.sample_mixture(wo, u_lobe, u)
+    }
+
+    /// The general `sample`: a lobe picked by the selection probabilities,
+    /// a direction from it, the mixture's density and weight.
+    #[inline(never)]
+    fn sample_mixture(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let k = self.cdf.iter().position(|&c| u_lobe < c)?;
         let p = self.prob(k);
         let lo = self.cdf[k] - p;

@@ -43,13 +43,13 @@ fn frames_are_orthonormal_and_round_trip() {
     }
     for n in normals {
         let f = Frame::from_normal(n);
-        for (a, b) in [(f.t, f.b), (f.b, f.n), (f.n, f.t)] {
+        for (a, b) in [(f.t(), f.b()), (f.b(), f.n()), (f.n(), f.t())] {
             assert!(a.dot(b).abs() < 1e-5, "{n}");
         }
-        for v in [f.t, f.b, f.n] {
+        for v in [f.t(), f.b(), f.n()] {
             assert!((v.length() - 1.0).abs() < 1e-5, "{n}");
         }
-        assert!(f.t.cross(f.b).abs_diff_eq(f.n, 1e-5), "right-handed at {n}");
+        assert!(f.t().cross(f.b()).abs_diff_eq(f.n(), 1e-5), "right-handed at {n}");
         let w = Vec3::new(0.3, -0.5, 0.8);
         assert!(f.to_world(f.to_local(w)).abs_diff_eq(w, 1e-5));
         assert!(f.to_local(n).abs_diff_eq(Vec3::Z, 1e-5));
@@ -337,5 +337,105 @@ fn ggx_distribution_and_visible_normals_are_normalised() {
                 "alpha {alpha}, {w}: {v}"
             );
         }
+    }
+}
+
+#[test]
+fn the_one_lobe_paths_give_the_general_codes_bits() {
+    // Plain Lambertian mixtures take their own path in `eval_pdf` and
+    // `sample_local`; the general code must give the very same numbers, so
+    // renders keep their bytes. Directions on both sides, grazing ones and
+    // ones in the plane included.
+    let mut rng = Pcg32::new(11, 3);
+    let mut next = || rng.next_f32();
+    let bsdfs = [
+        Bsdf::lambertian(Vec3::new(0.725, 0.71, 0.68)),
+        Bsdf::lambertian(Vec3::new(1.0, 0.0, 1e-30)),
+        Material {
+            kd: Vec3::splat(0.6),
+            ks: Vec3::splat(1e-12),
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+    ];
+    for bsdf in bsdfs {
+        assert!(bsdf.only_diffuse());
+        let mut n = 0;
+        for i in 0..20_000 {
+            let mut v = || Vec3::new(next(), next(), next()) * 2.0 - 1.0;
+            let (mut wo, mut wi) = (v(), v());
+            if i % 97 == 0 {
+                wo.z = 0.0;
+            }
+            if i % 89 == 0 {
+                wi.z = 1e-30;
+            }
+            let (u_lobe, u) = (next(), Vec2::new(next(), next()));
+            let (Some(lo), Some(li)) = (LocalDir::new(wo), LocalDir::new(wi)) else {
+                assert_eq!(bsdf.eval(wo, wi), Vec3::ZERO);
+                continue;
+            };
+            n += 1;
+            let (f, pdf) = bsdf.eval_pdf(lo, li);
+            let (f_gen, pdf_gen) = (bsdf.eval_unit(lo.get(), li.get()), bsdf.pdf_unit(lo.get(), li.get()));
+            assert_eq!(f.to_array().map(f32::to_bits), f_gen.to_array().map(f32::to_bits));
+            assert_eq!(pdf.to_bits(), pdf_gen.to_bits());
+            let bits = |s: Option<BsdfSample>| {
+                s.map(|s| {
+                    (
+                        s.wi.to_array().map(f32::to_bits),
+                        s.weight.to_array().map(f32::to_bits),
+                        s.pdf.to_bits(),
+                        s.delta,
+                    )
+                })
+            };
+            let fast = bsdf.sample_local(lo, u_lobe, u);
+            assert_eq!(bits(fast), bits(bsdf.sample_mixture(lo.get(), u_lobe, u)));
+            assert_eq!(bits(fast), bits(bsdf.sample(wo, u_lobe, u)));
+        }
+        assert!(n > 19_000);
+        assert!(bsdf.sample_local(LocalDir(Vec3::Z), 1.0, Vec2::ZERO).is_none());
+    }
+    // Mixtures with other lobes, and glTF's coupled base, keep the general
+    // code.
+    let plastic = Material {
+        ks: Vec3::splat(0.3),
+        ..Material::default()
+    };
+    assert!(Material::default().bsdf(Vec3::ONE).only_diffuse() && !plastic.bsdf(Vec3::ONE).only_diffuse());
+    assert!(!Bsdf::metallic_roughness(Vec3::ONE, 0.0, 0.5, 0.0, 1.5).only_diffuse());
+    assert!(!Bsdf::mirror(Vec3::ONE).only_diffuse());
+}
+
+#[test]
+fn frame_changes_of_coordinates_give_the_dot_products_bits() {
+    // The frame multiplies four-wide matrices; every lane must make the
+    // float-at-a-time products and sums in their order.
+    let mut rng = Pcg32::new(3, 5);
+    let mut v = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+    let bits = |a: Vec3| a.to_array().map(f32::to_bits);
+    for i in 0..10_000 {
+        let n = match i % 4 {
+            0 => v().normalize_or(Vec3::Z),
+            1 => v(),
+            2 => Vec3::new(0.0, -0.0, -1.0),
+            _ => Vec3::new(v().x, 0.0, -0.0),
+        };
+        let f = Frame::from_normal(n);
+        let (t, b) = (f.t(), f.b());
+        // The basis of Duff et al. as it was computed float by float.
+        let sign = 1f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let xy = n.x * n.y * a;
+        assert_eq!(
+            bits(t),
+            bits(Vec3::new(1.0 + sign * n.x * n.x * a, sign * xy, -sign * n.x))
+        );
+        assert_eq!(bits(b), bits(Vec3::new(xy, sign + n.y * n.y * a, -n.y)));
+        assert_eq!(bits(f.n()), bits(n));
+        let w = v() * 3.0;
+        assert_eq!(bits(f.to_local(w)), bits(Vec3::new(w.dot(t), w.dot(b), w.dot(n))));
+        assert_eq!(bits(f.to_world(w)), bits(t * w.x + b * w.y + n * w.z));
     }
 }
