@@ -17,7 +17,7 @@
 //! let hit = intersect_triangle(&ray, [Vec3::ZERO, Vec3::X, Vec3::Y], f32::INFINITY);
 //! assert_eq!(hit.map(|h| h.t), Some(1.0));
 //! ```
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 
 mod aabb;
 mod mesh;
