@@ -84,6 +84,11 @@ pub(crate) trait LeafTest: Copy {
     fn any(self, ray: &Self::Ray, pack: &TrianglePack8, t_max: f32) -> bool;
     /// Every lane's answer.
     fn hits(self, ray: &Self::Ray, pack: &TrianglePack8, t_max: f32) -> PackHits<LANES>;
+    /// [`plane_distance`] of `ray` to the triangle in `lane` of `pack`.
+    #[inline(always)]
+    fn plane_distance(self, ray: &Ray, pack: &TrianglePack8, lane: usize) -> Option<f32> {
+        plane_distance(ray, lane_triangle(pack, lane))
+    }
 }
 
 /// The portable pack tests: [`PreparedRay::intersect_lanes`], for either
@@ -438,18 +443,18 @@ impl MeshBvh {
         };
         self.wide
             .walk_sized::<true, B, _, T>(boxes, ray, t_max, &mut visit, tally);
-        visit.best.map(|(slot, hit)| self.refine(ray, slot, hit, t_max))
+        visit.best.map(|(slot, hit)| self.refine(leaves, ray, slot, hit, t_max))
     }
 
     /// The hit with its distance recomputed in f64 when that lies in
     /// `(0, t_max)` too (it does but where the f32 value sits at a bound,
     /// and then the f32 value is kept). `slot` is `LANES * pack + lane`.
-    #[inline]
-    fn refine(&self, ray: &Ray, slot: usize, hit: MeshHit, t_max: f32) -> MeshHit {
+    #[inline(always)]
+    fn refine<L: LeafTest>(&self, leaves: L, ray: &Ray, slot: usize, hit: MeshHit, t_max: f32) -> MeshHit {
         let t = self
             .packs
             .get(slot / LANES)
-            .and_then(|p| plane_distance(ray, lane_triangle(&p.v, slot % LANES)))
+            .and_then(|p| leaves.plane_distance(ray, &p.v, slot % LANES))
             .filter(|t| *t > 0.0 && *t < t_max)
             .unwrap_or(hit.t);
         MeshHit { t, ..hit }
@@ -547,7 +552,7 @@ impl MeshBvh {
                 }
             }
         }
-        best.map(|(slot, hit)| self.refine(&ray.ray, slot, hit, t_max))
+        best.map(|(slot, hit)| self.refine(PortableLeaf, &ray.ray, slot, hit, t_max))
     }
 }
 
