@@ -4,8 +4,8 @@
 //! denoise thread.
 
 use super::*;
-use lucent_geom::Vec3;
 use lucent_denoise::emission::DirectEmission;
+use lucent_geom::Vec3;
 use lucent_render::render_samples;
 
 fn scene() -> RenderScene {
