@@ -35,6 +35,7 @@
 
 pub mod emission;
 mod ffi;
+pub mod to_error;
 
 use lucent_geom::Vec3;
 use lucent_render::Film;
