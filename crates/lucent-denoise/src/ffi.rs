@@ -15,6 +15,7 @@
 
 use std::ffi::{CStr, CString, c_char, c_int, c_void};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 type Device = *mut c_void;
 type Filter = *mut c_void;
@@ -25,6 +26,27 @@ const DEVICE_TYPE_CPU: c_int = 1;
 const FORMAT_FLOAT3: c_int = 3;
 /// `OIDN_ERROR_NONE`.
 const ERROR_NONE: c_int = 0;
+/// `OIDN_ERROR_CANCELLED` (OIDN 2's numbering).
+const ERROR_CANCELLED: c_int = 6;
+
+/// `OIDNProgressMonitorFunction`: called with the user pointer and the
+/// progress in [0, 1]; returning false cancels the filter.
+type ProgressMonitor = unsafe extern "C" fn(*mut c_void, f64) -> bool;
+
+/// Why a filter run gave no image.
+#[derive(Debug)]
+pub(crate) enum RunError {
+    /// The cancel flag was set while it ran.
+    Cancelled,
+    /// OIDN reported an error, or the images did not fit.
+    Failed(String),
+}
+
+impl From<String> for RunError {
+    fn from(e: String) -> Self {
+        RunError::Failed(e)
+    }
+}
 
 /// The entry points used, resolved once.
 pub(crate) struct Api {
@@ -38,6 +60,7 @@ pub(crate) struct Api {
         unsafe extern "C" fn(Filter, *const c_char, *mut c_void, c_int, usize, usize, usize, usize, usize),
     set_filter_bool: unsafe extern "C" fn(Filter, *const c_char, bool),
     set_filter_int: unsafe extern "C" fn(Filter, *const c_char, c_int),
+    set_filter_progress_monitor: unsafe extern "C" fn(Filter, Option<ProgressMonitor>, *mut c_void),
     commit_filter: unsafe extern "C" fn(Filter),
     execute_filter: unsafe extern "C" fn(Filter),
     release_filter: unsafe extern "C" fn(Filter),
@@ -71,6 +94,7 @@ impl Api {
             set_shared_filter_image: sym!("oidnSetSharedFilterImage"),
             set_filter_bool: sym!("oidnSetFilterBool"),
             set_filter_int: sym!("oidnSetFilterInt"),
+            set_filter_progress_monitor: sym!("oidnSetFilterProgressMonitorFunction"),
             commit_filter: sym!("oidnCommitFilter"),
             execute_filter: sym!("oidnExecuteFilter"),
             release_filter: sym!("oidnReleaseFilter"),
@@ -128,6 +152,11 @@ impl OidnDevice {
 
     /// The device's pending error, if any, as a message (and clears it).
     fn check(&self) -> Result<(), String> {
+        self.check_code().map_err(|(_, message)| message)
+    }
+
+    /// [`OidnDevice::check`] with OIDN's error code.
+    fn check_code(&self) -> Result<(), (c_int, String)> {
         let mut message: *const c_char = std::ptr::null();
         // SAFETY: a live device handle and a valid out-pointer; the message
         // OIDN returns is a NUL-terminated string valid until the next call
@@ -142,25 +171,31 @@ impl OidnDevice {
             // SAFETY: see above.
             unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned()
         };
-        Err(format!("OIDN error {code}: {text}"))
+        Err((code, format!("OIDN error {code}: {text}")))
     }
 
-    /// Runs the `RT` filter (HDR input) on `images`.
-    pub(crate) fn run_rt(&self, images: Images<'_>, quality: c_int) -> Result<(), String> {
+    /// Runs the `RT` filter (HDR input) on `images`; gives up when
+    /// `cancel` (checked at OIDN's progress reports) reads true.
+    pub(crate) fn run_rt(
+        &self,
+        images: Images<'_>,
+        quality: c_int,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<(), RunError> {
         let n = images.width * images.height * 3;
         let sizes_ok = images.color.len() == n
             && images.output.len() == n
             && images.albedo.is_none_or(|a| a.len() == n)
             && images.normal.is_none_or(|a| a.len() == n);
         if !sizes_ok || n == 0 {
-            return Err("image sizes do not match".to_owned());
+            return Err(RunError::Failed("image sizes do not match".to_owned()));
         }
         // SAFETY: a live device handle and a NUL-terminated filter type;
         // null is checked.
         let filter = unsafe { (self.api.new_filter)(self.device, cstr("RT").as_ptr()) };
         if filter.is_null() {
             self.check()?;
-            return Err("oidnNewFilter(\"RT\") returned no filter".to_owned());
+            return Err(RunError::Failed("oidnNewFilter(\"RT\") returned no filter".to_owned()));
         }
         let release = FilterGuard { api: &self.api, filter };
         let stride = 3 * std::mem::size_of::<f32>();
@@ -196,14 +231,42 @@ impl OidnDevice {
         unsafe {
             (self.api.set_filter_bool)(release.filter, cstr("hdr").as_ptr(), true);
             (self.api.set_filter_int)(release.filter, cstr("quality").as_ptr(), quality);
-            (self.api.commit_filter)(release.filter);
         }
+        if let Some(flag) = cancel {
+            // SAFETY: a live filter; `keep_going` has the monitor's C
+            // signature and reads the user pointer only as the
+            // `&AtomicBool` given here, which is borrowed for this whole
+            // call and so outlives the synchronous execute below and the
+            // filter (released by `release` before this returns).
+            unsafe {
+                (self.api.set_filter_progress_monitor)(
+                    release.filter,
+                    Some(keep_going),
+                    std::ptr::from_ref(flag).cast_mut().cast(),
+                );
+            }
+        }
+        // SAFETY: a live filter.
+        unsafe { (self.api.commit_filter)(release.filter) };
         self.check()?;
         // SAFETY: a committed filter whose images are alive (see `set`);
         // execution is synchronous.
         unsafe { (self.api.execute_filter)(release.filter) };
-        self.check()
+        match self.check_code() {
+            Err((ERROR_CANCELLED, _)) => Err(RunError::Cancelled),
+            Err((_, message)) => Err(RunError::Failed(message)),
+            Ok(()) => Ok(()),
+        }
     }
+}
+
+/// The progress monitor: goes on while the flag behind `user` reads false.
+unsafe extern "C" fn keep_going(user: *mut c_void, _progress: f64) -> bool {
+    // SAFETY: `run_rt` registers this function only with a pointer to an
+    // `AtomicBool` that outlives the filter (see there); an atomic may be
+    // read from whichever thread OIDN calls this on.
+    let cancel = unsafe { &*user.cast_const().cast::<AtomicBool>() };
+    !cancel.load(Ordering::Relaxed)
 }
 
 /// Releases a filter when dropped.

@@ -35,12 +35,14 @@
 
 pub mod emission;
 mod ffi;
+pub mod to_error;
 
 use lucent_geom::Vec3;
 use lucent_render::Film;
-use lucent_render::aov::AovFilm;
+use lucent_render::aov::{AovFilm, AovImages};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 /// The library's file name on Linux (OIDN 2's soname).
@@ -68,6 +70,9 @@ or set {ENV_VAR} to the library file or its directory"
     /// OIDN reported an error.
     #[error("Intel Open Image Denoise failed: {0}")]
     Oidn(String),
+    /// The cancel flag was set while the filter ran.
+    #[error("denoising was cancelled")]
+    Cancelled,
 }
 
 /// OIDN's speed-for-quality setting of the `RT` filter.
@@ -196,6 +201,30 @@ impl Denoiser {
         normal: Option<&[f32]>,
         quality: Quality,
     ) -> Result<Denoised, DenoiseError> {
+        self.run(
+            &Input {
+                width,
+                height,
+                color,
+                albedo,
+                normal,
+            },
+            quality,
+            None,
+        )
+    }
+
+    /// [`Denoiser::denoise`] of one input, stopped with
+    /// [`DenoiseError::Cancelled`] once `cancel` reads true (OIDN checks
+    /// it at its progress reports, many times per image).
+    fn run(&self, input: &Input<'_>, quality: Quality, cancel: Option<&AtomicBool>) -> Result<Denoised, DenoiseError> {
+        let Input {
+            width,
+            height,
+            color,
+            albedo,
+            normal,
+        } = *input;
         let start = Instant::now();
         let n = width
             .checked_mul(height)
@@ -256,8 +285,12 @@ impl Denoiser {
                     output: &mut output,
                 },
                 quality.oidn(),
+                cancel,
             )
-            .map_err(DenoiseError::Oidn)?;
+            .map_err(|e| match e {
+                ffi::RunError::Cancelled => DenoiseError::Cancelled,
+                ffi::RunError::Failed(m) => DenoiseError::Oidn(m),
+            })?;
         Ok(Denoised {
             pixels: output,
             replaced,
@@ -274,17 +307,33 @@ impl Denoiser {
         quality: Quality,
     ) -> Result<(Film, Denoised), DenoiseError> {
         let (w, h) = (film.width(), film.height());
-        let aov = aovs
+        let guides = aovs
             .filter(|a| a.n_samples() > 0 && (a.width(), a.height()) == (w, h))
             .map(AovFilm::images);
-        let d = self.denoise(
-            w as usize,
-            h as usize,
-            &film.to_linear_rgb(),
-            aov.as_ref().map(|a| a.albedo.as_slice()),
-            aov.as_ref().map(|a| a.normal.as_slice()),
-            quality,
-        )?;
+        self.denoise_guided(film, guides.as_ref(), quality, None)
+    }
+
+    /// Denoises a film guided by the mean feature buffers `guides` (which
+    /// must then be the film's size), into a one-sample film of the same
+    /// size; with `cancel`, gives up with [`DenoiseError::Cancelled`] once
+    /// it reads true.
+    pub fn denoise_guided(
+        &self,
+        film: &Film,
+        guides: Option<&AovImages>,
+        quality: Quality,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<(Film, Denoised), DenoiseError> {
+        let (w, h) = (film.width(), film.height());
+        let color = film.to_linear_rgb();
+        let input = Input {
+            width: w as usize,
+            height: h as usize,
+            color: &color,
+            albedo: guides.map(|g| g.albedo.as_slice()),
+            normal: guides.map(|g| g.normal.as_slice()),
+        };
+        let d = self.run(&input, quality, cancel)?;
         let pixels = d.pixels.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
         let out = Film::from_pixels(w, h, pixels)
             .ok_or_else(|| DenoiseError::BadInput("the denoised image has the wrong size".into()))?;
@@ -311,6 +360,16 @@ impl Denoiser {
         let out = emission.restore(&denoised).ok_or_else(mismatch)?;
         Ok((out, d))
     }
+}
+
+/// One image and its guides, as interleaved floats.
+#[derive(Clone, Copy)]
+struct Input<'a> {
+    width: usize,
+    height: usize,
+    color: &'a [f32],
+    albedo: Option<&'a [f32]>,
+    normal: Option<&'a [f32]>,
 }
 
 #[cfg(test)]

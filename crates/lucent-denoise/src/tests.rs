@@ -106,3 +106,31 @@ fn mismatched_buffers_are_errors() {
     assert!(bad(d.denoise(0, 2, &[], None, None, Quality::Fast)));
     assert!(d.denoise(2, 2, &px, Some(&px), Some(&px), Quality::Fast).is_ok());
 }
+
+/// A set cancel flag stops the filter with `Cancelled` (the viewer's stale
+/// stills); a clear one changes nothing.
+#[test]
+fn a_cancel_flag_stops_the_filter() {
+    let Some(d) = denoiser() else { return };
+    let (w, h) = (64u32, 48u32);
+    let (_, noisy) = noisy_gradient(w as usize, h as usize);
+    let film = Film::from_pixels(
+        w,
+        h,
+        noisy.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect(),
+    )
+    .unwrap_or_else(|| panic!("sizes"));
+    let stop = std::sync::atomic::AtomicBool::new(true);
+    let r = d.denoise_guided(&film, None, Quality::High, Some(&stop));
+    assert!(matches!(r, Err(DenoiseError::Cancelled)), "{:?}", r.map(|_| ()));
+    let go = std::sync::atomic::AtomicBool::new(false);
+    let (with_flag, _) = d
+        .denoise_guided(&film, None, Quality::High, Some(&go))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let (without, _) = d
+        .denoise_film(&film, None, Quality::High)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(with_flag, without);
+    // The device is usable after a cancelled run.
+    assert!(d.denoise_guided(&film, None, Quality::Fast, None).is_ok());
+}

@@ -5,9 +5,10 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lucent_denoise::emission::DirectEmission;
-use lucent_denoise::{Denoiser, Quality};
+use lucent_denoise::to_error::denoise_to_error;
+use lucent_denoise::{Denoised, Denoiser, Quality};
 use lucent_geom::Named;
-use lucent_render::aov::AovFilm;
+use lucent_render::aov::{AovFilm, AovImages};
 use lucent_render::{
     Film, Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render_samples_aov,
     with_threads,
@@ -133,20 +134,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
              the Whitted integrator records no feature buffers"
         );
     }
-    if settings.denoise && args.target_error.is_some() {
-        bail!(
-            "--denoise with --target-error is refused: the error estimate comes from the variance of the \
-             samples, which says nothing about the error left after denoising (it would overstate it \
-             many times over); use --spp N --denoise, or --target-error without --denoise"
-        );
-    }
     // Found before rendering, so a missing library costs no render time.
     let denoiser = if settings.denoise {
         Some(Denoiser::load(threads)?)
     } else {
         None
     };
-    let (rs, build_s, mut out, aovs, n_threads, refined) = with_threads(threads, || -> Result<_> {
+    let (rs, build_s, made, n_threads) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
         let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
         if settings.integrator == Integrator::Path {
@@ -163,32 +157,46 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if !log::log_enabled!(log::Level::Info) {
             bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
         }
-        let (out, aovs, refined) = render_mode(&rs, &settings, &args, want_aovs, &bar);
+        let made = match (args.target_error, &denoiser) {
+            (Some(target), Some(d)) => render_denoised_to_error(&rs, &settings, d, target, &bar)?,
+            _ => {
+                let (out, aovs, refined) = render_mode(&rs, &settings, &args, want_aovs, &bar);
+                Made {
+                    out,
+                    aovs,
+                    images: None,
+                    refined,
+                    denoised_note: None,
+                }
+            }
+        };
         bar.finish_and_clear();
-        Ok((rs, build_s, out, aovs, current_threads(), refined))
+        Ok((rs, build_s, made, current_threads()))
     })??;
+    let Made {
+        mut out,
+        aovs,
+        images,
+        refined,
+        denoised_note,
+    } = made;
     let (w, h) = (out.film.width(), out.film.height());
-    let mut denoised_note = String::new();
-    if let Some(denoiser) = &denoiser {
-        // The emitters the camera sees stay out of the filter (see
-        // lucent_denoise::emission); rendered with the samples' settings.
-        let sampled = RenderSettings {
-            spp: out.film.n_samples(),
-            ..settings
-        };
-        let emission = with_threads(threads, || DirectEmission::render(&rs, &sampled))?;
-        let (film, d) = denoiser.denoise_render(&out.film, aovs.as_ref(), emission.as_ref(), Quality::High)?;
-        out.film = film;
-        let replaced = if d.replaced > 0 {
-            format!(", {} non-finite or negative values zeroed first", d.replaced)
-        } else {
-            String::new()
-        };
-        denoised_note = format!(
-            ", denoised (OIDN RT, albedo + normal) in {:.3} s{replaced}",
-            d.elapsed.as_secs_f64()
-        );
-    }
+    let denoised_note = match (denoised_note, &denoiser) {
+        (Some(note), _) => note,
+        (None, Some(denoiser)) => {
+            // The emitters the camera sees stay out of the filter (see
+            // lucent_denoise::emission); rendered with the samples' settings.
+            let sampled = RenderSettings {
+                spp: out.film.n_samples(),
+                ..settings
+            };
+            let emission = with_threads(threads, || DirectEmission::render(&rs, &sampled))?;
+            let (film, d) = denoiser.denoise_render(&out.film, aovs.as_ref(), emission.as_ref(), Quality::High)?;
+            out.film = film;
+            denoise_note(&d)
+        }
+        (None, None) => String::new(),
+    };
     if let Some(png) = &args.output {
         lucent_assets::save_png(
             png,
@@ -198,7 +206,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         )?;
     }
     if let Some(exr) = &args.exr {
-        let images = aovs.as_ref().map(AovFilm::images);
+        let images = images.or_else(|| aovs.as_ref().map(AovFilm::images));
         let mut layers = Vec::new();
         if let Some(img) = &images {
             for aov in &args.aov {
@@ -256,6 +264,79 @@ pub fn run(args: RenderArgs) -> Result<()> {
         rays as f64 / 1e6 / secs.max(1e-9),
     );
     Ok(())
+}
+
+/// What a render made, for the outputs and the summary line.
+struct Made {
+    out: RenderOutput,
+    /// The guide buffers as sums, when the render recorded them.
+    aovs: Option<AovFilm>,
+    /// The guide buffers as images, when the render made them so.
+    images: Option<AovImages>,
+    /// What a time budget or an error target reached.
+    refined: Option<String>,
+    /// Set when the image is already denoised: what the summary says.
+    denoised_note: Option<String>,
+}
+
+/// The summary line's note on a denoised image.
+fn denoise_note(d: &Denoised) -> String {
+    let replaced = if d.replaced > 0 {
+        format!(", {} non-finite or negative values zeroed first", d.replaced)
+    } else {
+        String::new()
+    };
+    format!(
+        ", denoised (OIDN RT, albedo + normal) in {:.3} s{replaced}",
+        d.elapsed.as_secs_f64()
+    )
+}
+
+/// `--denoise --target-error E`: samples until the estimated relative
+/// error of the denoised image is at most `target` (the estimate from
+/// denoised half-sample images, see `lucent_denoise::to_error`), or the
+/// --spp cap; the image is denoised.
+fn render_denoised_to_error(
+    rs: &RenderScene,
+    settings: &RenderSettings,
+    denoiser: &Denoiser,
+    target: f64,
+    bar: &ProgressBar,
+) -> Result<Made> {
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} sampling and denoising to error {msg}, {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    bar.set_message(target.to_string());
+    bar.enable_steady_tick(Duration::from_millis(100));
+    let progress = |spp: u32, error: f64| {
+        bar.set_message(format!("{target}: {error:.4} at {spp} spp"));
+    };
+    let r = denoise_to_error(rs, settings, denoiser, target, settings.spp, Quality::High, &progress)?;
+    let reached = if r.reached_target {
+        "reached".to_owned()
+    } else {
+        format!("NOT reached: the --spp cap {}", settings.spp)
+    };
+    let refined = format!(
+        "target error {target} after denoising: estimated relative error of the denoised image {:.4} ({reached}), \
+         {} spp in {} rounds, half-sample images denoised in {:.3} s",
+        r.estimate.relative,
+        r.spp,
+        r.rounds,
+        r.estimate_time.as_secs_f64(),
+    );
+    Ok(Made {
+        out: RenderOutput {
+            film: r.film,
+            stats: r.stats,
+            elapsed: r.render_time,
+        },
+        aovs: None,
+        images: Some(r.guides),
+        refined: Some(refined),
+        denoised_note: Some(denoise_note(&r.denoised)),
+    })
 }
 
 /// Renders as the arguments ask: a plain render, to a time budget, or to an

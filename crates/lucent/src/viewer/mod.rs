@@ -50,9 +50,11 @@ pub const CONTROLS: &str = "Controls:
 
 The title shows frames per second, frame time, samples accumulated,
 resolution scale (window pixels per rendered pixel), preset, shading and
-whether the frame is denoised: with N on, the still image is denoised
-after every refinement pass and a moving preview when the measured cost
-of denoising it fits half the frame budget.
+whether the frame is denoised: with N on (path tracer), each
+full-resolution pass is shown as soon as it is traced and the denoised
+still replaces it when the denoiser is done (again each time the samples
+have grown by half), and a moving preview is denoised when the measured
+cost of denoising it fits half the frame budget.
 The viewer starts on the scene's own [render] settings (preset: scene),
 or on --preset NAME; the keys pick the presets `lucent render --preset`
 takes (samples, depth, integrator, shading, resolution scale). G and I
@@ -238,7 +240,9 @@ impl App {
         }
         let mut go_on = true;
         match self.worker.latest_frame(POLL) {
-            Some(frame) if frame.generation >= self.shown.generation => {
+            // A frame of lower rank (an older generation, a noisy pass after
+            // the denoised still, ...) never replaces the one shown.
+            Some(frame) if frame.rank() >= self.shown.rank => {
                 self.window
                     .update_with_buffer(&frame.pixels, w as usize, h as usize)
                     .map_err(|e| anyhow!("the window stopped accepting frames: {e}"))?;
@@ -426,11 +430,16 @@ impl ViewState {
     }
 
     /// Whether `frame` is the finished image of the current request: the
-    /// still camera refined to its samples per pixel (the worker then
-    /// idles until something changes).
+    /// still camera refined to its samples per pixel, denoised if a
+    /// denoised version follows (the worker then idles until something
+    /// changes).
     fn is_finished(&self, frame: &worker::Frame) -> bool {
         let r = self.request();
-        frame.refined && !r.moving && frame.generation == r.generation && frame.samples >= r.max_spp.max(1)
+        frame.refined
+            && !frame.denoise_follows
+            && !r.moving
+            && frame.generation == r.generation
+            && frame.samples >= r.max_spp.max(1)
     }
 
     /// The preset's name, or `scene` before one is picked.
@@ -443,7 +452,8 @@ impl ViewState {
 struct Shown {
     pixels: Vec<u32>,
     width: u32,
-    generation: u64,
+    /// [`worker::Frame::rank`] of the frame shown.
+    rank: worker::Rank,
     count: u64,
     start: Instant,
     last: Instant,
@@ -455,7 +465,7 @@ impl Shown {
         Self {
             pixels: vec![0; width as usize * height as usize],
             width,
-            generation: 0,
+            rank: (0, false, false, 0),
             count: 0,
             start,
             last: start,
@@ -469,7 +479,7 @@ impl Shown {
         self.last = now;
         self.clock.tick(frame_s);
         self.count += 1;
-        self.generation = frame.generation;
+        self.rank = frame.rank();
         FrameReport {
             index: self.count,
             t_s: now.duration_since(self.start).as_secs_f64(),

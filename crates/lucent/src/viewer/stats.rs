@@ -108,6 +108,7 @@ mod tests {
             output_s: 0.001,
             denoise_s: 0.004,
             denoised: true,
+            denoise_follows: false,
         };
         let report = FrameReport {
             index: 3,

@@ -234,11 +234,17 @@ fn a_frame_refined_to_the_cap_of_the_current_request_is_finished() {
         output_s: 0.0,
         denoise_s: 0.0,
         denoised: false,
+        denoise_follows: false,
     };
     assert!(v.is_finished(&frame(r.generation, 4, true)));
     assert!(!v.is_finished(&frame(r.generation, 3, true)), "below the cap");
     assert!(!v.is_finished(&frame(r.generation, 4, false)), "a preview");
     assert!(!v.is_finished(&frame(r.generation - 1, 4, true)), "an older request");
+    let noisy_with_more_to_come = worker::Frame {
+        denoise_follows: true,
+        ..frame(r.generation, 4, true)
+    };
+    assert!(!v.is_finished(&noisy_with_more_to_come), "its denoised still follows");
     // While the camera moves nothing is finished.
     assert!(v.apply(&drag(5.0), t0));
     let g = v.request().generation;

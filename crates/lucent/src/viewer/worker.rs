@@ -15,15 +15,30 @@
 //!
 //! With `RenderSettings::denoise` (the N key) the worker loads Intel Open
 //! Image Denoise the first time it is asked (a missing library is one
-//! warning on stderr and noisy frames); the still image is then refined
-//! with the albedo and normal buffers and denoised after every pass, and a
-//! moving preview is denoised (OIDN's fast setting) when the measured cost
-//! of denoising its pixels fits half the frame budget.
+//! warning on stderr and noisy frames). The still image is then refined
+//! with the albedo and normal buffers and, for an emissive scene, the
+//! emission camera rays find ([`lucent_denoise::emission`]), and denoised
+//! on a thread of its own ([`denoise_loop`]): each full-resolution pass is
+//! shown as soon as it is traced, and the denoised still when the filter
+//! is done. The first denoised still of a camera is waited for before
+//! refining on (so the filter has the cores), later ones are denoised
+//! while refinement goes on, each once the samples have grown by half. A
+//! new generation drops a still waiting to be denoised and cancels one
+//! being denoised (OIDN's progress callback), and a denoised still is sent
+//! only while its generation is current. A moving preview is denoised
+//! (OIDN's fast setting, on the render thread) when the measured cost of
+//! denoising its pixels fits half the frame budget.
+//!
+//! Frames reach the window from both threads; [`Frame::rank`] orders them
+//! (newer generation, then a still over a preview, a denoised frame over a
+//! noisy one, more samples over fewer), and the window never replaces a
+//! frame by one of lower rank.
 
+use denoise::{DenoiseJob, denoise_job, denoise_loop};
 use lucent_denoise::{Denoiser, Quality};
 use lucent_render::aov::AovFilm;
 use lucent_render::{
-    Film, RenderScene, RenderSettings, Tonemap, render_samples_aov_cancellable, render_samples_cancellable,
+    Film, Integrator, RenderScene, RenderSettings, Tonemap, render_samples_aov_cancellable, render_samples_cancellable,
 };
 use lucent_scene::components::OrbitRig;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -82,9 +97,23 @@ pub struct Frame {
     pub denoise_s: f32,
     /// Whether the frame was denoised.
     pub denoised: bool,
+    /// A still whose denoised version will follow (denoising on and
+    /// OIDN loaded): not the last frame of its samples.
+    pub denoise_follows: bool,
 }
 
+/// A frame's place in display order: see [`Frame::rank`].
+pub type Rank = (u64, bool, bool, u32);
+
 impl Frame {
+    /// The order frames are shown in: a newer generation first; within
+    /// one, a still over a preview, a denoised frame over a noisy one, then
+    /// more samples over fewer. A frame of lower rank than the one shown is
+    /// older news and never replaces it.
+    pub fn rank(&self) -> Rank {
+        (self.generation, self.refined, self.denoised, self.samples)
+    }
+
     /// Window pixels per rendered pixel along x.
     pub fn scale(&self, window_width: u32) -> f32 {
         window_width as f32 / self.width.max(1) as f32
@@ -193,16 +222,33 @@ impl CostModel {
 
 struct Shared {
     state: Mutex<State>,
+    /// Wakes the render thread.
     wake: Condvar,
+    /// Wakes the denoise thread.
+    denoise_wake: Condvar,
     /// Set when the generation changes; a refinement pass checks it.
     cancel_refine: AtomicBool,
     /// Set when the camera comes to rest; a preview checks it.
     cancel_preview: AtomicBool,
+    /// Set when the generation changes; the still being denoised checks it.
+    cancel_denoise: AtomicBool,
 }
 
 struct State {
     request: Request,
     quit: bool,
+    /// A still waiting for the denoise thread (a newer one replaces it).
+    denoise_job: Option<DenoiseJob>,
+    /// The denoise thread is working on a still.
+    denoise_busy: bool,
+    /// Generation and samples of the last still handed to the denoise
+    /// thread, and of the last one it finished with (denoised, failed or
+    /// dropped).
+    handed: Option<(u64, u32)>,
+    finished: Option<(u64, u32)>,
+    /// Denoising costs measured on stills (pixels, seconds), for the render
+    /// thread's cost model.
+    denoise_costs: Vec<(u64, f32)>,
 }
 
 impl Shared {
@@ -213,44 +259,62 @@ impl Shared {
     }
 }
 
-/// The render thread and its mailboxes.
+/// The render and denoise threads and their mailboxes.
 pub struct Worker {
     shared: Arc<Shared>,
     frames: Receiver<Frame>,
     thread: Option<JoinHandle<()>>,
+    denoise_thread: Option<JoinHandle<()>>,
 }
 
 impl Worker {
-    /// Starts the render thread on `scene`, working on `first` at once.
+    /// Starts the render thread on `scene`, working on `first` at once,
+    /// and the denoise thread beside it.
     pub fn spawn(scene: RenderScene, first: Request) -> std::io::Result<Self> {
         let shared = Arc::new(Shared {
             state: Mutex::new(State {
                 request: first,
                 quit: false,
+                denoise_job: None,
+                denoise_busy: false,
+                handed: None,
+                finished: None,
+                denoise_costs: Vec::new(),
             }),
             wake: Condvar::new(),
+            denoise_wake: Condvar::new(),
             cancel_refine: AtomicBool::new(false),
             cancel_preview: AtomicBool::new(false),
+            cancel_denoise: AtomicBool::new(false),
         });
         let (tx, frames) = channel();
-        let thread_shared = Arc::clone(&shared);
+        let denoise_shared = Arc::clone(&shared);
+        let denoise_tx = tx.clone();
+        let denoise_thread = std::thread::Builder::new()
+            .name("lucent-denoise".to_owned())
+            .spawn(move || denoise_loop(&denoise_shared, &denoise_tx))?;
+        let mut worker = Self {
+            shared: Arc::clone(&shared),
+            frames,
+            thread: None,
+            denoise_thread: Some(denoise_thread),
+        };
+        // On failure, dropping `worker` stops the denoise thread.
         let thread = std::thread::Builder::new()
             .name("lucent-render".to_owned())
-            .spawn(move || work(scene, &thread_shared, &tx))?;
-        Ok(Self {
-            shared,
-            frames,
-            thread: Some(thread),
-        })
+            .spawn(move || work(scene, &shared, &tx))?;
+        worker.thread = Some(thread);
+        Ok(worker)
     }
 
-    /// Replaces the request; a new generation cancels a refinement pass in
-    /// flight, coming to rest cancels a preview. Never blocks on rendering
-    /// (the lock guards a few words).
+    /// Replaces the request; a new generation cancels a refinement pass and
+    /// a denoised still in flight, coming to rest cancels a preview. Never
+    /// blocks on rendering (the lock guards a few words).
     pub fn submit(&self, request: Request) {
         let mut state = self.shared.lock();
         if state.request.generation != request.generation {
             self.shared.cancel_refine.store(true, Ordering::Relaxed);
+            self.shared.cancel_denoise.store(true, Ordering::Relaxed);
         }
         if state.request.moving && !request.moving {
             self.shared.cancel_preview.store(true, Ordering::Relaxed);
@@ -260,23 +324,27 @@ impl Worker {
         self.shared.wake.notify_one();
     }
 
-    /// The newest finished frame, waiting at most `timeout` for one;
-    /// older frames waiting in the mailbox are dropped.
+    /// The best finished frame by [`Frame::rank`], waiting at most
+    /// `timeout` for one; the others waiting in the mailbox are dropped.
     pub fn latest_frame(&self, timeout: Duration) -> Option<Frame> {
         let mut frame = match self.frames.recv_timeout(timeout) {
             Ok(f) => f,
             Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => return None,
         };
-        while let Ok(newer) = self.frames.try_recv() {
-            frame = newer;
+        while let Ok(other) = self.frames.try_recv() {
+            if other.rank() >= frame.rank() {
+                frame = other;
+            }
         }
         Some(frame)
     }
 
-    /// Whether the render thread has stopped (it only stops by panicking
-    /// before `Drop`).
+    /// Whether the render or denoise thread has stopped (they only stop by
+    /// panicking before `Drop`).
     pub fn is_dead(&self) -> bool {
-        self.thread.as_ref().is_none_or(JoinHandle::is_finished)
+        [&self.thread, &self.denoise_thread]
+            .into_iter()
+            .any(|t| t.as_ref().is_none_or(JoinHandle::is_finished))
     }
 }
 
@@ -285,8 +353,10 @@ impl Drop for Worker {
         self.shared.lock().quit = true;
         self.shared.cancel_refine.store(true, Ordering::Relaxed);
         self.shared.cancel_preview.store(true, Ordering::Relaxed);
+        self.shared.cancel_denoise.store(true, Ordering::Relaxed);
         self.shared.wake.notify_one();
-        if let Some(t) = self.thread.take() {
+        self.shared.denoise_wake.notify_one();
+        for t in [self.thread.take(), self.denoise_thread.take()].into_iter().flatten() {
             let _ = t.join();
         }
     }
@@ -296,25 +366,26 @@ impl Drop for Worker {
 enum Job {
     Preview(Request),
     Refine(Request),
+    /// Hand the still to the denoise thread.
+    HandOff(Request),
 }
 
-/// The render thread's loop: wait for work, do it, send the frame.
 /// The denoiser, loaded the first time a request asks for it.
 enum DenoiserSlot {
     NotTried,
-    Ready(Denoiser),
+    Ready(Arc<Denoiser>),
     Missing,
 }
 
 impl DenoiserSlot {
     /// The denoiser when `settings` ask for one and it can be had.
-    fn get(&mut self, settings: &RenderSettings) -> Option<&Denoiser> {
+    fn get(&mut self, settings: &RenderSettings) -> Option<&Arc<Denoiser>> {
         if !settings.denoise {
             return None;
         }
         if let DenoiserSlot::NotTried = self {
             *self = match Denoiser::load(0) {
-                Ok(d) => DenoiserSlot::Ready(d),
+                Ok(d) => DenoiserSlot::Ready(Arc::new(d)),
                 Err(e) => {
                     eprintln!("warning: frames stay noisy: {e}");
                     DenoiserSlot::Missing
@@ -326,14 +397,47 @@ impl DenoiserSlot {
             _ => None,
         }
     }
+
+    /// Whether a request's still will be denoised: denoising on, the path
+    /// tracer (the only integrator with guide buffers) and OIDN not known
+    /// to be missing.
+    fn will_denoise(&self, settings: &RenderSettings) -> bool {
+        settings.denoise && settings.integrator == Integrator::Path && !matches!(self, DenoiserSlot::Missing)
+    }
 }
 
-/// The still image being refined: its generation, film and feature buffers.
-type Still = (u64, Film, AovFilm);
+/// The still image being refined.
+struct Still {
+    generation: u64,
+    film: Film,
+    /// Guide buffers, recorded from the first pass when denoising is on.
+    aovs: AovFilm,
+    /// The first-hit emission of the film's own samples
+    /// (`DirectEmission::same_samples`), kept beside the film when it is
+    /// denoised and the scene has emissive surfaces.
+    emission: Option<Film>,
+    /// The first-hit emission of samples `0..EMISSION_SPP` (32), rendered when
+    /// the first still is handed to the denoiser.
+    emission_aa: Option<Film>,
+}
 
+impl Still {
+    /// Whether the guide buffers hold the film's samples.
+    fn guided(&self) -> bool {
+        self.aovs.n_samples() == self.film.n_samples()
+    }
+}
+
+/// The sample count at which the next still is denoised after one of `n`
+/// samples: half as many again (at least one more), or the cap.
+fn next_denoise_at(n: u32, cap: u32) -> u32 {
+    n.saturating_add(n.div_ceil(2)).max(n + 1).min(cap.max(1))
+}
+
+/// The render thread's loop: wait for work, do it, send the frame.
 fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
     let mut costs = CostModel::default();
-    let mut film: Option<Still> = None;
+    let mut still: Option<Still> = None;
     let mut denoiser = DenoiserSlot::NotTried;
     let mut previewed: Option<u64> = None;
     let base_rotation = scene.environment.rotation_deg;
@@ -345,11 +449,14 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 if state.quit {
                     return;
                 }
+                for (px, secs) in state.denoise_costs.drain(..) {
+                    costs.observe_denoise(px, secs);
+                }
                 let r = state.request;
-                let refined = film
+                let refined = still
                     .as_ref()
-                    .filter(|(g, _, _)| *g == r.generation)
-                    .map(|(_, f, _)| f.n_samples());
+                    .filter(|s| s.generation == r.generation)
+                    .map(|s| s.film.n_samples());
                 // Cleared under the lock, so a request that comes after the
                 // job is taken always cancels it.
                 shared.cancel_refine.store(false, Ordering::Relaxed);
@@ -357,13 +464,29 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 if r.moving && previewed != Some(r.generation) {
                     break Job::Preview(r);
                 }
-                if !r.moving && refined.is_none_or(|n| n < r.max_spp.max(1)) {
+                if r.moving {
+                    state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
+                    continue;
+                }
+                let cap = r.max_spp.max(1);
+                let denoising = denoiser.will_denoise(&r.settings) && still.as_ref().is_some_and(Still::guided);
+                let handed = state.handed.filter(|h| h.0 == r.generation).map(|h| h.1);
+                let idle = state.denoise_job.is_none() && !state.denoise_busy;
+                if let Some(n) = refined.filter(|_| denoising && idle)
+                    && handed.is_none_or(|h| n > h && n >= next_denoise_at(h, cap))
+                {
+                    break Job::HandOff(r);
+                }
+                // The first denoised still of a camera is waited for: the
+                // filter gets the cores, so it comes as soon as it can.
+                let first_pending = handed.is_some() && state.finished.is_none_or(|f| f.0 != r.generation);
+                if refined.is_none_or(|n| n < cap) && !(denoising && first_pending) {
                     break Job::Refine(r);
                 }
                 state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
             }
         };
-        let (Job::Preview(r) | Job::Refine(r)) = &job;
+        let (Job::Preview(r) | Job::Refine(r) | Job::HandOff(r)) = &job;
         if r.env_turn_deg != turned {
             turned = r.env_turn_deg;
             scene.set_environment_rotation(base_rotation + turned);
@@ -372,13 +495,45 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
             Job::Preview(r) => {
                 previewed = Some(r.generation);
                 scene.rig = r.rig;
-                let dn = denoiser.get(&r.settings);
+                let dn = denoiser.get(&r.settings).map(Arc::as_ref);
                 preview(&scene, &r, &mut costs, dn, &shared.cancel_preview)
             }
             Job::Refine(r) => {
                 scene.rig = r.rig;
-                let dn = denoiser.get(&r.settings);
-                refine(&scene, &r, &mut costs, &mut film, dn, &shared.cancel_refine)
+                // Loaded before the first pass, so the pass records what the
+                // denoiser needs only when there is one.
+                let dn = denoiser.get(&r.settings).is_some();
+                let denoising = dn && denoiser.will_denoise(&r.settings);
+                refine(&scene, &r, &mut costs, &mut still, denoising, &shared.cancel_refine)
+            }
+            Job::HandOff(r) => {
+                scene.rig = r.rig;
+                let n = still.as_ref().map_or(0, |s| s.film.n_samples());
+                let job = denoiser.get(&r.settings).and_then(|d| {
+                    let s = still.as_mut().filter(|s| s.generation == r.generation)?;
+                    denoise_job(&scene, &r, s, Arc::clone(d), &shared.cancel_refine)
+                });
+                let mut state = shared.lock();
+                let current = state.request.generation == r.generation;
+                match job {
+                    Some(job) if current => {
+                        state.handed = Some((job.generation, job.samples));
+                        state.denoise_job = Some(job);
+                        drop(state);
+                        shared.denoise_wake.notify_one();
+                    }
+                    // The request moved on: the loop looks again.
+                    Some(_) => {}
+                    None if current && !shared.cancel_refine.load(Ordering::Relaxed) => {
+                        // Not cancelled, yet no job: count these samples as
+                        // denoised (noisy), so the loop refines on rather
+                        // than trying again.
+                        state.handed = Some((r.generation, n));
+                        state.finished = Some((r.generation, n));
+                    }
+                    None => {}
+                }
+                None
             }
         };
         if let Some(frame) = frame
@@ -414,7 +569,7 @@ fn preview(
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(n_px * u64::from(spp), render_s);
     let (film, denoise_s) = match denoiser {
-        Some(d) => denoise(d, film, &aovs, Quality::Fast, costs),
+        Some(d) => denoise_preview(d, film, &aovs, costs),
         None => (film, None),
     };
     let (pixels, output_s) = output(&film, w, h, r.settings.tonemap, costs);
@@ -430,20 +585,15 @@ fn preview(
         output_s,
         denoise_s: denoise_s.unwrap_or(0.0),
         denoised: denoise_s.is_some(),
+        denoise_follows: false,
     })
 }
 
-/// `film` denoised with the guide of `aovs` (the noisy film when OIDN
+/// A preview denoised with the guide of `aovs` (the noisy one when OIDN
 /// fails, with a warning), and the seconds it took when it worked.
-fn denoise(
-    denoiser: &Denoiser,
-    film: Film,
-    aovs: &AovFilm,
-    quality: Quality,
-    costs: &mut CostModel,
-) -> (Film, Option<f32>) {
+fn denoise_preview(denoiser: &Denoiser, film: Film, aovs: &AovFilm, costs: &mut CostModel) -> (Film, Option<f32>) {
     let start = Instant::now();
-    match denoiser.denoise_film(&film, Some(aovs), quality) {
+    match denoiser.denoise_film(&film, Some(aovs), Quality::Fast) {
         Ok((out, _)) => {
             let secs = start.elapsed().as_secs_f32();
             costs.observe_denoise(u64::from(film.width()) * u64::from(film.height()), secs);
@@ -457,22 +607,30 @@ fn denoise(
 }
 
 /// One more pass of the still camera at the request's still scale, or
-/// `None` when a new request cancelled it (the film is then dropped).
+/// `None` when a new request cancelled it (the still is then dropped).
+/// With `denoising`, the pass also records the guide buffers and, in an
+/// emissive scene, the emission its camera rays find.
 fn refine(
     scene: &RenderScene,
     r: &Request,
     costs: &mut CostModel,
-    film: &mut Option<Still>,
-    denoiser: Option<&Denoiser>,
+    still: &mut Option<Still>,
+    denoising: bool,
     cancel: &AtomicBool,
 ) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (rw, rh) = scaled_size(w, h, r.still_scale);
-    let (_, f, aovs) = match film.take() {
-        Some((g, f, a)) if g == r.generation && (f.width(), f.height()) == (rw, rh) => film.insert((g, f, a)),
-        _ => film.insert((r.generation, Film::new(rw, rh), AovFilm::new(rw, rh))),
+    let s = match still.take() {
+        Some(s) if s.generation == r.generation && (s.film.width(), s.film.height()) == (rw, rh) => still.insert(s),
+        _ => still.insert(Still {
+            generation: r.generation,
+            film: Film::new(rw, rh),
+            aovs: AovFilm::new(rw, rh),
+            emission: (denoising && scene.features.emissive).then(|| Film::new(rw, rh)),
+            emission_aa: None,
+        }),
     };
-    let n = f.n_samples();
+    let n = s.film.n_samples();
     let k = costs
         .refine_samples(rw, rh, r.frame_budget_s)
         .min(r.max_spp.max(1).saturating_sub(n))
@@ -480,39 +638,47 @@ fn refine(
     let start = Instant::now();
     // The buffers are recorded from the first pass on whenever denoising is
     // on, so they always hold the film's samples.
-    let record = r.settings.denoise && aovs.n_samples() == n;
+    let record = denoising && s.guided();
     let done = if record {
-        render_samples_aov_cancellable(scene, &r.settings, f, aovs, n..n + k, cancel)
+        render_samples_aov_cancellable(scene, &r.settings, &mut s.film, &mut s.aovs, n..n + k, cancel).and_then(|_| {
+            match &mut s.emission {
+                Some(e) => render_samples_cancellable(scene, &first_hit(&r.settings), e, n..n + k, cancel),
+                None => Some(Default::default()),
+            }
+        })
     } else {
-        render_samples_cancellable(scene, &r.settings, f, n..n + k, cancel)
+        render_samples_cancellable(scene, &r.settings, &mut s.film, n..n + k, cancel)
     };
     if done.is_none() {
-        *film = None;
+        *still = None;
         return None;
     }
     let render_s = start.elapsed().as_secs_f32();
     costs.observe_trace(u64::from(rw) * u64::from(rh) * u64::from(k), render_s);
-    let (denoised, denoise_s) = match denoiser.filter(|_| record) {
-        Some(d) => {
-            let (out, secs) = denoise(d, f.clone(), aovs, Quality::High, costs);
-            (Some(out).filter(|_| secs.is_some()), secs)
-        }
-        None => (None, None),
-    };
-    let (pixels, output_s) = output(denoised.as_ref().unwrap_or(f), w, h, r.settings.tonemap, costs);
+    let (pixels, output_s) = output(&s.film, w, h, r.settings.tonemap, costs);
     Some(Frame {
         generation: r.generation,
         rig: r.rig,
         pixels,
         width: rw,
         height: rh,
-        samples: f.n_samples(),
+        samples: s.film.n_samples(),
         refined: true,
         render_s,
         output_s,
-        denoise_s: denoise_s.unwrap_or(0.0),
-        denoised: denoise_s.is_some(),
+        denoise_s: 0.0,
+        denoised: false,
+        denoise_follows: record && s.guided(),
     })
+}
+
+/// The settings of the first-hit emission pass: camera rays and the
+/// emission they find (`DirectEmission::render`'s).
+fn first_hit(settings: &RenderSettings) -> RenderSettings {
+    RenderSettings {
+        max_depth: 1,
+        ..*settings
+    }
 }
 
 /// A `width` x `height` window rendered at `scale` window pixels per
@@ -553,6 +719,8 @@ pub fn upscale(film: &Film, buffer: &mut [u32], buffer_width: u32, tonemap: Tone
         }
     }
 }
+
+mod denoise;
 
 #[cfg(test)]
 mod tests;

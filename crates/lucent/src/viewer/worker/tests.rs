@@ -1,8 +1,10 @@
 //! Tests of the render thread without a window: the cost model's sizing,
 //! progressive refinement up to the cap, previews while moving, and that a
-//! new generation never lets an older frame through.
+//! new generation never lets an older frame through, with and without the
+//! denoise thread.
 
 use super::*;
+use lucent_denoise::emission::DirectEmission;
 use lucent_geom::Vec3;
 use lucent_render::render_samples;
 
@@ -194,29 +196,182 @@ fn denoising_a_preview_waits_for_a_measured_cost_that_fits() {
     assert_eq!(c.s_per_denoised_px, 1e-6);
 }
 
-#[test]
-fn a_still_image_with_denoise_on_is_denoised_where_oidn_is_installed() {
-    let rs = scene();
-    let mut r = request(1, false, 2);
-    r.settings.integrator = lucent_render::Integrator::Path;
+/// The installed denoiser, or `None` (with a note) where OIDN is absent
+/// and not required (`LUCENT_REQUIRE_OIDN=1`).
+fn oidn() -> Option<Denoiser> {
+    match Denoiser::load(0) {
+        Ok(d) => Some(d),
+        Err(e) => {
+            let required = std::env::var("LUCENT_REQUIRE_OIDN").is_ok_and(|v| v == "1");
+            assert!(!required, "LUCENT_REQUIRE_OIDN=1 but: {e}");
+            eprintln!("note: OIDN is not installed; the denoised viewer frames were not checked: {e}");
+            None
+        }
+    }
+}
+
+/// A still request of the glowing box (emissive walls: the emission split
+/// is used), path traced with denoising on.
+fn denoised_request(generation: u64, max_spp: u32) -> (RenderScene, Request) {
+    let rs = lucent_render::extract(&lucent_scene::fixtures::glowing_box(0.5, 1.0)).unwrap();
+    let mut r = request(generation, false, max_spp);
+    r.rig = rs.rig;
+    r.settings.integrator = Integrator::Path;
+    r.settings.max_depth = 4;
     r.settings.denoise = true;
-    let mut film = None;
-    let mut costs = CostModel::default();
-    let Ok(d) = Denoiser::load(0) else {
-        let required = std::env::var("LUCENT_REQUIRE_OIDN").is_ok_and(|v| v == "1");
-        assert!(!required, "LUCENT_REQUIRE_OIDN=1 but OIDN does not load");
-        eprintln!("note: OIDN is not installed; the denoised viewer frame was not checked");
-        return;
+    (rs, r)
+}
+
+/// Each full-resolution pass is sent as soon as it is traced, noisy, and
+/// says a denoised still follows; the denoised still comes after, ranked
+/// above every noisy pass, and the finished image is the denoised still of
+/// every sample: exactly what `lucent render --denoise` makes of a fresh
+/// render of those samples (guide buffers and the emission split
+/// included), upscaled to the window.
+#[test]
+fn a_still_shows_each_pass_then_its_denoised_version() {
+    let Some(d) = oidn() else { return };
+    let (rs, r) = denoised_request(1, 4);
+    let worker = Worker::spawn(rs.clone(), r).unwrap();
+    let first = worker.latest_frame(WAIT).expect("the first pass");
+    assert!(first.refined && !first.denoised && first.denoise_follows, "{first:?}");
+    assert_eq!((first.width, first.height), (64, 36));
+    let mut shown = first.rank();
+    let last = loop {
+        let f = worker
+            .latest_frame(WAIT)
+            .expect("frames up to the denoised still of 4 spp");
+        assert_eq!(f.generation, 1);
+        if f.rank() >= shown {
+            shown = f.rank();
+        }
+        if f.denoised && f.samples == 4 {
+            break f;
+        }
     };
-    let never = AtomicBool::new(false);
-    let frame = refine(&rs, &r, &mut costs, &mut film, Some(&d), &never).unwrap();
-    assert!(frame.denoised && frame.denoise_s > 0.0, "{frame:?}");
-    assert!(costs.s_per_denoised_px > 0.0);
-    let (_, f, aovs) = film.as_ref().unwrap();
-    assert_eq!((f.n_samples(), aovs.n_samples()), (frame.samples, frame.samples));
-    // Turned off: the same pass, noisy.
+    assert!(last.refined && !last.denoise_follows && last.denoise_s > 0.0);
+    assert_eq!(shown, last.rank(), "nothing ranks above the finished still");
+    assert!(
+        worker.latest_frame(Duration::from_millis(300)).is_none(),
+        "idle once the finished still is denoised"
+    );
+    // The same samples rendered and denoised in one go.
+    let settings = RenderSettings { spp: 4, ..r.settings };
+    let (mut film, mut aovs) = (Film::new(64, 36), AovFilm::new(64, 36));
+    lucent_render::render_samples_aov(&rs, &settings, &mut film, &mut aovs, 0..4, &|_| {});
+    let emission = DirectEmission::render(&rs, &settings).expect("an emissive scene");
+    let (expected, _) = d
+        .denoise_render(&film, Some(&aovs), Some(&emission), Quality::High)
+        .unwrap();
+    let mut pixels = vec![0; 64 * 36];
+    upscale(&expected, &mut pixels, 64, Tonemap::Clamp);
+    assert!(
+        pixels == last.pixels,
+        "the viewer's still differs from lucent render --denoise's"
+    );
+}
+
+/// Without OIDN (or with denoising off) a still says no denoised version
+/// follows, so the window may call it finished.
+#[test]
+fn without_a_denoiser_no_denoised_still_is_promised() {
+    let (rs, mut r) = denoised_request(1, 2);
     r.settings.denoise = false;
-    r.generation = 2;
-    let frame = refine(&rs, &r, &mut costs, &mut film, None, &never).unwrap();
-    assert!(!frame.denoised && frame.denoise_s == 0.0);
+    let worker = Worker::spawn(rs, r).unwrap();
+    let f = worker.latest_frame(WAIT).expect("a pass");
+    assert!(f.refined && !f.denoised && !f.denoise_follows);
+    // The Whitted integrator records no guide buffers: not denoised either.
+    let slot = DenoiserSlot::NotTried;
+    let whitted = RenderSettings {
+        integrator: Integrator::Whitted,
+        denoise: true,
+        ..r.settings
+    };
+    assert!(!slot.will_denoise(&whitted));
+    assert!(slot.will_denoise(&RenderSettings {
+        denoise: true,
+        ..r.settings
+    }));
+    assert!(!DenoiserSlot::Missing.will_denoise(&RenderSettings {
+        denoise: true,
+        ..r.settings
+    }));
+}
+
+/// New generations while stills are being denoised: no frame of an older
+/// generation ever follows a newer one out of the mailbox, and the last
+/// generation still gets its denoised still.
+#[test]
+fn new_generations_cancel_stale_denoising() {
+    if oidn().is_none() {
+        return;
+    }
+    let (rs, r) = denoised_request(1, 64);
+    let worker = Worker::spawn(rs, r).unwrap();
+    let mut seen = Vec::new();
+    for generation in 1..30u64 {
+        worker.submit(Request {
+            generation,
+            rig: request(generation, false, 1).rig,
+            ..r
+        });
+        if let Some(f) = worker.latest_frame(Duration::from_millis(30)) {
+            seen.push(f.generation);
+        }
+    }
+    let last = Request {
+        generation: 30,
+        max_spp: 2,
+        ..r
+    };
+    worker.submit(last);
+    loop {
+        let f = worker.latest_frame(WAIT).expect("the last generation's denoised still");
+        seen.push(f.generation);
+        if f.generation == 30 && f.denoised {
+            break;
+        }
+    }
+    assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+}
+
+#[test]
+fn frames_rank_by_generation_then_stillness_denoising_and_samples() {
+    let frame = |generation, refined, denoised, samples| Frame {
+        generation,
+        rig: OrbitRig::default(),
+        pixels: Vec::new(),
+        width: 1,
+        height: 1,
+        samples,
+        refined,
+        render_s: 0.0,
+        output_s: 0.0,
+        denoise_s: 0.0,
+        denoised,
+        denoise_follows: false,
+    };
+    let order = [
+        frame(1, true, true, 9),
+        frame(2, false, false, 1),
+        frame(2, false, true, 1),
+        frame(2, true, false, 1),
+        frame(2, true, false, 2),
+        frame(2, true, true, 1),
+        frame(2, true, true, 3),
+        frame(3, false, false, 1),
+    ];
+    assert!(order.windows(2).all(|w| w[0].rank() < w[1].rank()));
+    // The denoised still of 3 samples is kept over a later noisy pass.
+    assert!(frame(2, true, false, 4).rank() < frame(2, true, true, 3).rank());
+}
+
+#[test]
+fn stills_are_denoised_again_once_the_samples_grow_by_half() {
+    assert_eq!(next_denoise_at(1, 100), 2);
+    assert_eq!(next_denoise_at(2, 100), 3);
+    assert_eq!(next_denoise_at(4, 100), 6);
+    assert_eq!(next_denoise_at(64, 100), 96);
+    assert_eq!(next_denoise_at(96, 100), 100, "the cap, always denoised last");
+    assert_eq!(next_denoise_at(u32::MAX - 1, u32::MAX), u32::MAX);
 }
