@@ -86,6 +86,18 @@ pub fn place_scene(scene: &mut Scene, scale: f32, translate: Vec3) {
     }
 }
 
+/// The true relative RMSE of `image`: against the mean of two independent
+/// references `a` and `b`, with the mean's own noise (a quarter of their
+/// mean squared difference) taken out. Panics where the sizes differ.
+pub fn true_relative_rmse(image: &[Vec3], a: &[Vec3], b: &[Vec3]) -> f64 {
+    use lucent_render::metrics;
+    let mean: Vec<Vec3> = a.iter().zip(b).map(|(a, b)| (*a + *b) * 0.5).collect();
+    let e = metrics::compare(image, &mean).unwrap_or_else(|| panic!("sizes differ"));
+    let ab = metrics::rmse(a, b).unwrap_or_else(|| panic!("sizes differ"));
+    let mse = (e.rmse * e.rmse - ab * ab / 4.0).max(0.0);
+    mse.sqrt() * e.relative_rmse / e.rmse
+}
+
 /// Encodes a film as an 8-bit sRGB PNG through the tone curve `tonemap`.
 pub fn film_png(film: &Film, tonemap: lucent_render::Tonemap) -> Vec<u8> {
     lucent_assets::encode_png(film.width(), film.height(), &film.to_srgb8_tonemapped(0.0, tonemap))

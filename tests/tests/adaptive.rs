@@ -11,7 +11,7 @@
 
 use lucent_geom::Vec3;
 use lucent_render::{RenderScene, RenderSettings, extract, metrics, render, render_to_error};
-use lucent_tests::load_repo_scene;
+use lucent_tests::{load_repo_scene, true_relative_rmse};
 
 /// How far the estimate may be from the truth: the truth must be at most
 /// `FACTOR` times the estimate (the render must not claim to be better
@@ -64,16 +64,6 @@ fn check_estimate(
         out.estimated_error
     );
     ratio
-}
-
-/// The true relative RMSE of `image`: against the mean of two independent
-/// references, with the mean's own noise taken out.
-fn true_relative_rmse(image: &[Vec3], a: &[Vec3], b: &[Vec3]) -> f64 {
-    let mean: Vec<Vec3> = a.iter().zip(b).map(|(a, b)| (*a + *b) * 0.5).collect();
-    let e = metrics::compare(image, &mean).unwrap_or_else(|| panic!("sizes differ"));
-    let ab = metrics::rmse(a, b).unwrap_or_else(|| panic!("sizes differ"));
-    let mse = (e.rmse * e.rmse - ab * ab / 4.0).max(0.0);
-    mse.sqrt() * e.relative_rmse / e.rmse
 }
 
 /// Path traced at 24x24 (max depth 16, glass and mirror included), two

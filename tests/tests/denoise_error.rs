@@ -17,8 +17,8 @@ use lucent_assets::load_scene;
 use lucent_denoise::emission::DirectEmission;
 use lucent_denoise::to_error::{SplitRender, denoise_to_error};
 use lucent_denoise::{Denoiser, Quality};
-use lucent_geom::Vec3;
 use lucent_render::{RenderScene, RenderSettings, extract, metrics, render};
+use lucent_tests::true_relative_rmse;
 use std::path::Path;
 
 /// How far the estimate may be from the truth, both ways, as in
@@ -69,16 +69,6 @@ fn the_halves_together_are_the_uniform_render() {
     assert_eq!(split.film(), film);
     assert_eq!(split.direct_emission(), DirectEmission::render(&rs, &uniform));
     assert!(split.direct_emission().is_some(), "the Cornell box's light is seen");
-}
-
-/// The true relative RMSE of `image`: against the mean of two independent
-/// references, with the mean's own noise taken out.
-fn true_relative_rmse(image: &[Vec3], a: &[Vec3], b: &[Vec3]) -> f64 {
-    let mean: Vec<Vec3> = a.iter().zip(b).map(|(a, b)| (*a + *b) * 0.5).collect();
-    let e = metrics::compare(image, &mean).unwrap_or_else(|| panic!("sizes differ"));
-    let ab = metrics::rmse(a, b).unwrap_or_else(|| panic!("sizes differ"));
-    let mse = (e.rmse * e.rmse - ab * ab / 4.0).max(0.0);
-    mse.sqrt() * e.relative_rmse / e.rmse
 }
 
 /// Path traced at 32x32 (glass, mirror and the light seen directly, whose
