@@ -330,6 +330,7 @@ fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult
             render_s: reference.render_s,
             cached: reference.cached,
             key: reference.key.clone(),
+            sources_changed: reference.sources_changed,
         },
         presets,
     };
@@ -363,7 +364,8 @@ fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult
     Ok(result)
 }
 
-/// The reference from the cache, or rendered and stored.
+/// The reference from the cache, its missing batches rendered and stored
+/// (see `reference.rs`).
 fn get_reference(
     path: &Path,
     stem: &str,
@@ -373,38 +375,62 @@ fn get_reference(
     cache: &Path,
 ) -> Result<Reference, String> {
     let root = crate::root();
-    let (key, manifest) = reference::cache_key(&root, path, bytes, settings, &reference::renderer_inputs(&root))?;
-    let exr = cache.join(format!("{stem}-{key}.exr"));
-    if let Some((image, noise_rmse, render_s)) = reference::load_cached(&exr)
-        && image.width == settings.width
-        && image.height == settings.height
-    {
-        println!("  reference from the cache: {}", exr.display());
-        return Ok(Reference {
-            image,
-            noise_rmse,
-            render_s,
-            cached: true,
-            key,
-        });
-    }
-    println!(
-        "  rendering the reference ({}); cached as {}",
-        settings.describe(),
-        exr.display()
-    );
+    let (key, manifest) = reference::cache_key(&root, path, bytes, settings)?;
+    let sources = reference::sources_hash(&root, &reference::renderer_inputs(&root))?;
+    let batches = reference::BatchCache::new(cache.join(format!("{stem}-{key}")));
     let rs = extract_with(scene, &lucent_render::ExtractOptions::default())
         .map_err(|e| format!("{}: {e}", path.display()))?;
-    let (image, noise_rmse, render_s) = reference::render_reference(&rs, &scene.settings, settings, &|done, secs| {
-        println!("    batch {done}/{} done, {secs:.0} s", settings.chunks);
-    });
-    reference::store(&exr, &image, noise_rmse, render_s, &manifest)?;
+    let probe = reference::probe(&rs, &scene.settings, settings);
+    let recorded = batches.probe_record();
+    let sources_changed = match &recorded {
+        Some(r) if r.probe == probe => {
+            if r.sources != sources {
+                println!(
+                    "  note: the renderer's sources changed since the cached batches were rendered, but their probe (every pixel's first sample) is identical; kept"
+                );
+            }
+            r.sources != sources
+        }
+        _ => {
+            if recorded.is_some() {
+                println!("  the renderer draws differently now (probe {probe} differs); rendering the reference again");
+            }
+            let record = reference::ProbeRecord {
+                probe: probe.clone(),
+                sources: sources.clone(),
+            };
+            batches.reset(&record, &manifest)?;
+            false
+        }
+    };
+    println!(
+        "  reference: {}; batches cached in {}",
+        settings.describe(),
+        batches.dir().display()
+    );
+    let (mut images, mut render_s, mut cached) = (Vec::new(), 0.0, true);
+    for i in 0..settings.chunks.max(1) {
+        let (image, secs) = match batches.load(i, settings.width, settings.height) {
+            Some(b) => b,
+            None => {
+                cached = false;
+                let (image, secs) = reference::render_batch(&rs, &scene.settings, settings, i);
+                batches.store(i, settings.width, settings.height, &image, secs)?;
+                println!("    batch {}/{} rendered in {secs:.0} s", i + 1, settings.chunks);
+                (image, secs)
+            }
+        };
+        images.push(image);
+        render_s += secs;
+    }
+    let (image, noise_rmse) = reference::combine(settings.width, settings.height, &images);
     Ok(Reference {
         image,
         noise_rmse,
         render_s,
-        cached: false,
+        cached,
         key,
+        sources_changed,
     })
 }
 
