@@ -657,8 +657,14 @@ mod tests {
         // 32 spp in 16 batches: a noise estimate exists.
         assert!(first.reference.noise_rmse.is_finite() && first.reference.noise_rmse > 0.0);
         assert!(out.join("tiny-contact.png").is_file());
-        let cached = std::fs::read_dir(out.join("cache")).map_or(0, |d| d.count());
-        assert_eq!(cached, 2, "an EXR and its manifest");
+        let count = |dir: &Path| std::fs::read_dir(dir).map_or(0, |d| d.count());
+        assert_eq!(count(&out.join("cache")), 1, "one folder for the one reference");
+        let batches = out.join(format!("cache/tiny-{}", first.reference.key));
+        assert_eq!(
+            count(&batches),
+            1 + 2 * REF_CHUNKS as usize,
+            "the probe, and an EXR and its time per batch"
+        );
         let again = measure_scene(&scene, &opts, &out).unwrap_or_else(|e| panic!("{e}"));
         assert!(again.reference.cached);
         assert_eq!(again.reference.key, first.reference.key);
