@@ -40,6 +40,7 @@ use lucent_denoise::emission::{DirectEmission, EMISSION_SPP};
 use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
 use lucent_render::aov::AovFilm;
+use lucent_render::preview::{EMISSION_GRID, PreviewPasses};
 use lucent_render::quality::{PRESETS, QualityPreset, WHITTED};
 use lucent_render::{
     Film, Integrator, RenderSettings, current_threads, extract_with, metrics, render, render_samples_aov, with_threads,
@@ -453,6 +454,25 @@ fn time_rung(
         let _ = rs.flat_bvh();
     }
     let extract_s = start.elapsed().as_secs_f64();
+    if rung.denoise && settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+        // A preview: its reflected light denoised at the reduced size,
+        // guided by the same samples' buffers, then put together.
+        let denoiser = denoiser.ok_or("a denoised rung without a denoiser")?;
+        let start = Instant::now();
+        let passes = PreviewPasses::render(&rs, &settings);
+        let render_s = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let (denoised, _) = denoiser
+            .denoise_film(&passes.reflected, Some(&passes.aovs), Quality::High)
+            .map_err(|e| e.to_string())?;
+        let film = passes.compose(&denoised);
+        let timing = Timing {
+            extract_s,
+            render_s,
+            denoise_s: start.elapsed().as_secs_f64(),
+        };
+        return Ok((timing, Image::from_film(&film)));
+    }
     if rung.denoise {
         let denoiser = denoiser.ok_or("a denoised rung without a denoiser")?;
         let (w, h) = (settings.width.max(1), settings.height.max(1));
@@ -503,6 +523,12 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
             if s.clamp_indirect > 0.0 {
                 d += &format!(", indirect clamped at {}", s.clamp_indirect);
             }
+            if s.lighting_scale > 1 {
+                d += &format!(
+                    ", reflected light traced at 1/{} size and scaled up, lights seen directly at full size ({EMISSION_GRID}x{EMISSION_GRID} rays per pixel)",
+                    s.lighting_scale
+                );
+            }
             d
         }
     };
@@ -513,7 +539,9 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
         p.resolution_scale,
         s.spp,
         p.bvh_quality.name(),
-        if denoise {
+        if denoise && s.lighting_scale > 1 {
+            ", OIDN RT (albedo, normal) on the reflected light".to_owned()
+        } else if denoise {
             format!(", OIDN RT (albedo, normal), emitters seen directly apart at {EMISSION_SPP} spp")
         } else {
             String::new()

@@ -8,6 +8,7 @@ use lucent_denoise::emission::DirectEmission;
 use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
 use lucent_render::aov::AovFilm;
+use lucent_render::preview::PreviewPasses;
 use lucent_render::{
     Film, Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render_samples_aov,
     with_threads,
@@ -130,6 +131,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let settings = scene.settings;
+    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+        let mode = match (args.farm.part, args.time_budget, args.target_error) {
+            (Some(share), _, _) => Some(format!("--part {share}")),
+            (_, Some(_), _) => Some("--time-budget".to_owned()),
+            (_, _, Some(_)) => Some("--target-error".to_owned()),
+            _ => None,
+        };
+        if let Some(mode) = mode {
+            bail!(
+                "{mode} with a lighting scale of {} (the preview preset, or --lighting-scale) is refused: that \
+                 preview is one pass whose reflected light is traced at a fraction of the size, not samples \
+                 to refine or share out; add --lighting-scale 1",
+                settings.lighting_scale
+            );
+        }
+    }
     let threads = args.threads.map_or(0, usize::from);
     let want_aovs = settings.denoise || !args.aov.is_empty();
     if want_aovs && settings.integrator != Integrator::Path {
@@ -170,21 +187,31 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         let (out, aovs, refined) = render_mode(&rs, &settings, &args, want_aovs, &bar);
         bar.finish_and_clear();
-        Ok((rs, build_s, (out, aovs), current_threads(), refined))
+        Ok((rs, build_s, out_with(out, aovs), current_threads(), refined))
     })??;
-    let (mut out, aovs) = out;
+    let (mut out, aovs, preview) = out;
     let (w, h) = (out.film.width(), out.film.height());
     let mut denoised_note = String::new();
     if let Some(denoiser) = &denoiser {
-        // The emitters the camera sees stay out of the filter (see
-        // lucent_denoise::emission); rendered with the samples' settings.
-        let sampled = RenderSettings {
-            spp: out.film.n_samples(),
-            ..settings
+        let d = if let Some(passes) = &preview {
+            // A preview: its reflected light, at the reduced size, guided
+            // by the same samples' buffers; the lights it draws apart stay
+            // out of the filter.
+            let (film, d) = denoiser.denoise_film(&passes.reflected, Some(&passes.aovs), Quality::High)?;
+            out.film = passes.compose(&film);
+            d
+        } else {
+            // The emitters the camera sees stay out of the filter (see
+            // lucent_denoise::emission); rendered with the samples' settings.
+            let sampled = RenderSettings {
+                spp: out.film.n_samples(),
+                ..settings
+            };
+            let emission = with_threads(threads, || DirectEmission::render(&rs, &sampled))?;
+            let (film, d) = denoiser.denoise_render(&out.film, aovs.as_ref(), emission.as_ref(), Quality::High)?;
+            out.film = film;
+            d
         };
-        let emission = with_threads(threads, || DirectEmission::render(&rs, &sampled))?;
-        let (film, d) = denoiser.denoise_render(&out.film, aovs.as_ref(), emission.as_ref(), Quality::High)?;
-        out.film = film;
         let replaced = if d.replaced > 0 {
             format!(", {} non-finite or negative values zeroed first", d.replaced)
         } else {
@@ -243,6 +270,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .collect();
     let mode = match settings.integrator {
         Integrator::Whitted => format!("whitted {}", settings.shading.name()),
+        Integrator::Path if settings.lighting_scale > 1 => format!(
+            "path max_depth {}, reflected light at 1/{} size",
+            settings.max_depth, settings.lighting_scale
+        ),
         Integrator::Path => format!("path max_depth {}", settings.max_depth),
     };
     if let Some(refined) = refined {
@@ -278,36 +309,65 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Renders as the arguments ask: a plain render, to a time budget, or to an
-/// error target. Returns the output, the feature buffers when `aovs`, and,
-/// for the last two modes, what they reached, for the summary line.
+/// The output, with its preview passes when it is a preview.
+fn out_with(out: Rendered, aovs: Option<AovFilm>) -> (RenderOutput, Option<AovFilm>, Option<PreviewPasses>) {
+    match out {
+        Rendered::Preview(out, passes) => (out, aovs, Some(passes)),
+        Rendered::Plain(out) | Rendered::WithAovs(out, _) => (out, aovs, None),
+    }
+}
+
+/// Renders as the arguments ask: a plain render, a preview
+/// ([`RenderSettings::lighting_scale`]), to a time budget, or to an error
+/// target. Returns the output, the feature buffers when `aovs` (a
+/// preview's only for `--aov`: it denoises its own), and, for the last two
+/// modes, what they reached, for the summary line.
 fn render_mode(
     rs: &RenderScene,
     settings: &RenderSettings,
     args: &RenderArgs,
     aovs: bool,
     bar: &ProgressBar,
-) -> (RenderOutput, Option<AovFilm>, Option<String>) {
+) -> (Rendered, Option<AovFilm>, Option<String>) {
     let (out, refined) = render_image(rs, settings, args, aovs, bar);
     match out {
-        Rendered::WithAovs(out, aov_film) => (out, Some(aov_film), refined),
+        Rendered::WithAovs(out, aov_film) => (Rendered::Plain(out), Some(aov_film), refined),
+        Rendered::Preview(out, passes) if !args.aov.is_empty() => {
+            let (w, h) = (out.film.width(), out.film.height());
+            let aov_film = guide_buffers(rs, settings, w, h);
+            (Rendered::Preview(out, passes), Some(aov_film), refined)
+        }
+        out @ Rendered::Preview(..) => (out, None, refined),
         Rendered::Plain(out) if aovs => {
             // Modes that sample unevenly or to a clock record no AOVs:
             // guide buffers from a short separate pass.
             let (w, h) = (out.film.width(), out.film.height());
-            let mut scratch = Film::new(w, h);
-            let mut aov_film = AovFilm::new(w, h);
-            render_samples_aov(rs, settings, &mut scratch, &mut aov_film, 0..GUIDE_SPP, &|_| {});
-            (out, Some(aov_film), refined)
+            let aov_film = guide_buffers(rs, settings, w, h);
+            (Rendered::Plain(out), Some(aov_film), refined)
         }
-        Rendered::Plain(out) => (out, None, refined),
+        out @ Rendered::Plain(_) => (out, None, refined),
     }
 }
 
-/// A render, with its AOVs when it recorded them.
+/// Feature buffers of a `w` x `h` image from a short pass of their own.
+fn guide_buffers(rs: &RenderScene, settings: &RenderSettings, w: u32, h: u32) -> AovFilm {
+    let full = RenderSettings {
+        width: w,
+        height: h,
+        ..*settings
+    };
+    let mut scratch = Film::new(w, h);
+    let mut aov_film = AovFilm::new(w, h);
+    render_samples_aov(rs, &full, &mut scratch, &mut aov_film, 0..GUIDE_SPP, &|_| {});
+    aov_film
+}
+
+/// A render, with its AOVs when it recorded them, or a preview with its
+/// passes.
 enum Rendered {
     Plain(RenderOutput),
     WithAovs(RenderOutput, AovFilm),
+    Preview(RenderOutput, PreviewPasses),
 }
 
 fn render_image(
@@ -378,6 +438,18 @@ fn render_image(
             elapsed: out.elapsed,
         };
         return (Rendered::Plain(plain), Some(refined));
+    }
+    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+        let start = Instant::now();
+        let passes = PreviewPasses::render(rs, settings);
+        let film = passes.compose(&passes.smoothed());
+        bar.set_position(u64::from(settings.height));
+        let out = RenderOutput {
+            film,
+            stats: passes.stats,
+            elapsed: start.elapsed(),
+        };
+        return (Rendered::Preview(out, passes), None);
     }
     let (w, h) = (settings.width.max(1), settings.height.max(1));
     let mut film = Film::new(w, h);

@@ -7,7 +7,8 @@
 //! While the camera moves, the worker renders previews sized to the frame
 //! budget from measured costs ([`CostModel`]); when it holds still, it
 //! refines one film at the preset's resolution pass by pass up to the
-//! sample cap. A new
+//! sample cap (a one-pass preview, `RenderSettings::lighting_scale` above
+//! 1, is rendered whole instead, as `lucent render` makes it). A new
 //! request generation cancels a refinement pass in flight and restarts
 //! accumulation; the camera coming to rest cancels a preview in flight (the
 //! full-resolution pass it delays is what the user waits for); a cancelled
@@ -22,8 +23,9 @@
 
 use lucent_denoise::{Denoiser, Quality};
 use lucent_render::aov::AovFilm;
+use lucent_render::preview::PreviewPasses;
 use lucent_render::{
-    Film, RenderScene, RenderSettings, Tonemap, render_samples_aov_cancellable, render_samples_cancellable,
+    Film, Integrator, RenderScene, RenderSettings, Tonemap, render_samples_aov_cancellable, render_samples_cancellable,
 };
 use lucent_scene::components::OrbitRig;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -357,7 +359,9 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 if r.moving && previewed != Some(r.generation) {
                     break Job::Preview(r);
                 }
-                if !r.moving && refined.is_none_or(|n| n < r.max_spp.max(1)) {
+                // A one-pass preview's film is done after its one pass.
+                let cap = if one_pass(&r.settings) { 1 } else { r.max_spp.max(1) };
+                if !r.moving && refined.is_none_or(|n| n < cap) {
                     break Job::Refine(r);
                 }
                 state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
@@ -468,6 +472,11 @@ fn refine(
 ) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (rw, rh) = scaled_size(w, h, r.still_scale);
+    if one_pass(&r.settings) {
+        let (frame, still) = still_preview(scene, r, (rw, rh), costs, denoiser);
+        *film = Some((r.generation, still, AovFilm::new(1, 1)));
+        return Some(frame);
+    }
     let (_, f, aovs) = match film.take() {
         Some((g, f, a)) if g == r.generation && (f.width(), f.height()) == (rw, rh) => film.insert((g, f, a)),
         _ => film.insert((r.generation, Film::new(rw, rh), AovFilm::new(rw, rh))),
@@ -513,6 +522,67 @@ fn refine(
         denoise_s: denoise_s.unwrap_or(0.0),
         denoised: denoise_s.is_some(),
     })
+}
+
+/// Whether `settings` ask for a one-pass preview
+/// (`RenderSettings::lighting_scale` above 1 with the path tracer).
+fn one_pass(settings: &RenderSettings) -> bool {
+    settings.integrator == Integrator::Path && settings.lighting_scale > 1
+}
+
+/// The still image of a one-pass preview (`RenderSettings::lighting_scale`
+/// above 1, the `preview` preset): rendered whole at `size`, its reflected
+/// light denoised when denoising is on (else smoothed), as `lucent render`
+/// and `cargo xtask tradeoff` make it. Not cancellable, but it is the
+/// cheapest image the ladder has. Returns the frame and the image (a
+/// one-sample film, which [`work`] takes as finished).
+fn still_preview(
+    scene: &RenderScene,
+    r: &Request,
+    (rw, rh): (u32, u32),
+    costs: &mut CostModel,
+    denoiser: Option<&Denoiser>,
+) -> (Frame, Film) {
+    let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
+    // The sample cap in the one pass.
+    let sized = RenderSettings {
+        width: rw,
+        height: rh,
+        spp: r.max_spp.max(1),
+        ..r.settings
+    };
+    let start = Instant::now();
+    let passes = PreviewPasses::render(scene, &sized);
+    let render_s = start.elapsed().as_secs_f32();
+    let (reflected, denoise_s) = match denoiser.filter(|_| r.settings.denoise) {
+        Some(d) => {
+            let start = Instant::now();
+            match d.denoise_film(&passes.reflected, Some(&passes.aovs), Quality::High) {
+                Ok((out, _)) => (out, Some(start.elapsed().as_secs_f32())),
+                Err(e) => {
+                    eprintln!("warning: denoising failed, showing the undenoised frame: {e}");
+                    (passes.smoothed(), None)
+                }
+            }
+        }
+        None => (passes.smoothed(), None),
+    };
+    let still = passes.compose(&reflected);
+    let (pixels, output_s) = output(&still, w, h, r.settings.tonemap, costs);
+    let frame = Frame {
+        generation: r.generation,
+        rig: r.rig,
+        pixels,
+        width: rw,
+        height: rh,
+        samples: sized.spp,
+        refined: true,
+        render_s,
+        output_s,
+        denoise_s: denoise_s.unwrap_or(0.0),
+        denoised: denoise_s.is_some(),
+    };
+    (frame, still)
 }
 
 /// A `width` x `height` window rendered at `scale` window pixels per
