@@ -13,27 +13,10 @@
 //!   the path (the camera ray's hit distance when the first surface is not
 //!   specular).
 //!
-//! A surface that mixes a delta lobe with smooth ones (a varnished floor
-//! that mirrors what stands on it, a glossy coat over glass) shows two
-//! images at once: its own colour, and what the delta lobe reflects or
-//! transmits. Guides that record only the first would tell the denoiser
-//! that the mirror image is noise on a flat floor, and it blurs it away. So
-//! the record follows the path's own choice there, as production renderers
-//! follow near-specular lobes for their denoising passes: when the path
-//! samples the delta lobe, the sample's record becomes that of what the
-//! lobe shows, weighted by the lobe's colour (the sample's weight);
-//! otherwise it stays the mixed surface's. Averaged over a pixel's samples
-//! the buffers then blend the two images by how often the path takes each,
-//! which is how much each contributes to the beauty image. Surfaces with
-//! no delta lobe (diffuse, Phong, rough metal) and purely specular ones
-//! are recorded as before.
-//!
 //! A path that ends on specular surfaces only (depth limit, roulette)
 //! records the last specular surface, with the specular colour gathered so
 //! far as its albedo; a path that leaves the scene first records the
-//! background (clamped) as albedo, a zero normal and no depth. A path that
-//! ends right after taking a mixed surface's delta lobe keeps that
-//! surface's record.
+//! background (clamped) as albedo, a zero normal and no depth.
 //!
 //! [`AovFilm`] sums the samples of each pixel in sample order, like
 //! [`Film`](crate::Film), so the buffers do not depend on the thread count.
@@ -170,11 +153,6 @@ pub(crate) struct AovRecorder {
     travelled: f32,
     /// The last specular surface met: its normal and distance.
     last_specular: Option<(Vec3, f32)>,
-    /// The surface just met was recorded (the path has not left it yet).
-    recorded_here: bool,
-    /// The output holds a mixed surface's record that a delta sample
-    /// reopened: kept if nothing replaces it.
-    fallback: bool,
     done: bool,
 }
 
@@ -184,8 +162,6 @@ impl AovRecorder {
             through: Vec3::ONE,
             travelled: 0.0,
             last_specular: None,
-            recorded_here: false,
-            fallback: false,
             done: false,
         }
     }
@@ -202,9 +178,9 @@ impl AovRecorder {
     #[inline]
     pub(crate) fn surface(&mut self, out: &mut AovSample, t: f32, ns: Vec3, albedo: Vec3, specular: bool) {
         let depth = self.travelled + t;
-        self.travelled = depth;
         if specular {
             self.last_specular = Some((ns, depth));
+            self.travelled = depth;
         } else {
             *out = AovSample {
                 albedo: (self.through * albedo).clamp(Vec3::ZERO, Vec3::ONE),
@@ -212,26 +188,14 @@ impl AovRecorder {
                 depth: Some(depth),
             };
             self.done = true;
-            self.recorded_here = true;
-            self.fallback = false;
         }
     }
 
-    /// The path leaves the surface just met with a BSDF sample of weight
-    /// `weight`, from a delta lobe when `delta`. Still pending (the surface
-    /// was specular), the colour carries on; just recorded (the surface
-    /// has smooth lobes) and `delta`, the record is reopened (see the
-    /// module docs).
+    /// The path continues from a specular surface with sample weight
+    /// `weight`.
     #[inline]
-    pub(crate) fn bounce(&mut self, delta: bool, weight: Vec3) {
-        if self.recorded_here && delta {
-            self.done = false;
-            self.fallback = true;
-        }
-        if !self.done {
-            self.through *= weight;
-        }
-        self.recorded_here = false;
+    pub(crate) fn specular_bounce(&mut self, weight: Vec3) {
+        self.through *= weight;
     }
 
     /// The path left the scene towards a background of `background`.
@@ -246,15 +210,10 @@ impl AovRecorder {
     }
 
     /// The path ended (depth limit, roulette, absorption) before a
-    /// non-specular surface: the last specular one stands in, or the mixed
-    /// surface whose record a delta sample reopened.
+    /// non-specular surface: the last specular one stands in.
     #[inline]
     pub(crate) fn end(&mut self, out: &mut AovSample) {
         if self.done {
-            return;
-        }
-        self.done = true;
-        if self.fallback {
             return;
         }
         let (normal, depth) = match self.last_specular {
@@ -266,6 +225,7 @@ impl AovRecorder {
             normal,
             depth,
         };
+        self.done = true;
     }
 }
 
@@ -301,7 +261,7 @@ mod tests {
         let mut out = AovSample::default();
         let mut r = AovRecorder::new();
         r.surface(&mut out, 1.0, Vec3::X, Vec3::ONE, true);
-        r.bounce(true, Vec3::new(0.5, 1.0, 1.0));
+        r.specular_bounce(Vec3::new(0.5, 1.0, 1.0));
         assert!(r.pending());
         r.surface(&mut out, 2.0, Vec3::Y, Vec3::splat(0.8), false);
         assert!(!r.pending());
@@ -313,7 +273,7 @@ mod tests {
 
         let mut r = AovRecorder::new();
         r.surface(&mut out, 1.5, Vec3::X, Vec3::ONE, true);
-        r.bounce(true, Vec3::splat(0.9));
+        r.specular_bounce(Vec3::splat(0.9));
         r.end(&mut out);
         assert_eq!(
             (out.albedo, out.normal, out.depth),
@@ -325,50 +285,6 @@ mod tests {
         assert_eq!(
             (out.albedo, out.normal, out.depth),
             (Vec3::new(1.0, 0.5, 0.0), Vec3::ZERO, None)
-        );
-    }
-
-    #[test]
-    fn a_delta_sample_off_a_mixed_surface_records_what_the_lobe_shows() {
-        let floor = Vec3::new(0.9, 0.8, 0.7);
-        // The path takes the smooth lobe: the floor's record stays.
-        let mut out = AovSample::default();
-        let mut r = AovRecorder::new();
-        r.surface(&mut out, 2.0, Vec3::Y, floor, false);
-        r.bounce(false, Vec3::splat(0.5));
-        assert!(!r.pending(), "the path tracer records nothing more");
-        r.end(&mut out);
-        assert_eq!((out.albedo, out.normal, out.depth), (floor, Vec3::Y, Some(2.0)));
-
-        // It takes the mirror lobe: the next surface's record, in the
-        // lobe's colour, at the distance along the path.
-        let mut r = AovRecorder::new();
-        r.surface(&mut out, 2.0, Vec3::Y, floor, false);
-        r.bounce(true, Vec3::splat(0.5));
-        assert!(r.pending());
-        r.surface(&mut out, 1.0, Vec3::X, Vec3::new(1.0, 0.2, 0.4), false);
-        r.bounce(true, Vec3::splat(0.5)); // not a mixed surface's delta lobe: a later bounce
-        r.end(&mut out);
-        assert_eq!(
-            (out.albedo, out.normal, out.depth),
-            (Vec3::new(0.5, 0.1, 0.2), Vec3::X, Some(3.0))
-        );
-
-        // It takes the mirror lobe and ends there: the floor's record stays.
-        let mut r = AovRecorder::new();
-        r.surface(&mut out, 2.0, Vec3::Y, floor, false);
-        r.bounce(true, Vec3::splat(0.5));
-        r.end(&mut out);
-        assert_eq!((out.albedo, out.normal, out.depth), (floor, Vec3::Y, Some(2.0)));
-
-        // It takes the mirror lobe into the sky: the sky in the lobe's colour.
-        let mut r = AovRecorder::new();
-        r.surface(&mut out, 2.0, Vec3::Y, floor, false);
-        r.bounce(true, Vec3::splat(0.5));
-        r.miss(&mut out, Vec3::new(0.8, 0.4, 4.0));
-        assert_eq!(
-            (out.albedo, out.normal, out.depth),
-            (Vec3::new(0.4, 0.2, 1.0), Vec3::ZERO, None)
         );
     }
 }

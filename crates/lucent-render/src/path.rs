@@ -277,8 +277,8 @@ impl<'a> PathTracer<'a> {
                 break;
             };
             throughput *= bs.weight;
-            if AOV {
-                rec.bounce(bs.delta, bs.weight);
+            if AOV && rec.pending() {
+                rec.specular_bounce(bs.weight);
             }
             if throughput.max_element() <= 0.0 {
                 break;
