@@ -1,4 +1,4 @@
-//! The `preview` preset's picture: a path-traced image whose reflected light
+//! A one-pass preview: a path-traced image whose reflected light
 //! is traced at a fraction of the resolution, while what the camera sees of
 //! the lights is drawn at full resolution.
 //!
@@ -32,9 +32,9 @@
 //! pixels are independent, each sums its samples in a fixed order, and
 //! the emission grid uses no random numbers.
 //!
-//! The reflected light of step 1 can be denoised before step 3 (the
-//! `preview+oidn` rung of `cargo xtask tradeoff`, `lucent render --preset
-//! preview --denoise`), guided by the feature buffers of the same samples.
+//! The reflected light of step 1 can be denoised before step 3 (`lucent
+//! render --lighting-scale 4 --denoise`), guided by the feature buffers of
+//! the same samples.
 
 use crate::aov::AovFilm;
 use crate::flat::FlatBvh;

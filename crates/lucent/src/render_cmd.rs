@@ -140,7 +140,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         };
         if let Some(mode) = mode {
             bail!(
-                "{mode} with a lighting scale of {} (the preview preset, or --lighting-scale) is refused: that \
+                "{mode} with a lighting scale of {} (--lighting-scale or [render] lighting_scale) is refused: that \
                  preview is one pass whose reflected light is traced at a fraction of the size, not samples \
                  to refine or share out; add --lighting-scale 1",
                 settings.lighting_scale

@@ -26,31 +26,40 @@ fn render(name: &str, args: &[&str]) -> (String, (u32, u32)) {
 }
 
 #[test]
-fn preview_path_traces_its_reflected_light_at_a_quarter_and_whitted_keeps_the_report_model() {
-    // seed.toml is 640x360 at 4 spp; preview keeps the size, one sample,
-    // direct light and one bounce, its reflected light traced at a quarter
-    // of the width and height.
+fn preview_path_traces_at_half_size_and_whitted_keeps_the_report_model() {
+    // seed.toml is 640x360 at 4 spp; preview halves the size, one sample,
+    // direct light and one bounce.
     let (summary, size) = render("preview", &["--preset", "preview"]);
-    assert_eq!(size, (640, 360));
-    assert!(
-        summary.contains("640x360, 1 spp, path max_depth 3, reflected light at 1/4 size"),
-        "{summary}"
-    );
+    assert_eq!(size, (320, 180));
+    assert!(summary.contains("320x180, 1 spp, path max_depth 3"), "{summary}");
     let (summary, size) = render("whitted", &["--preset", "whitted"]);
     assert_eq!(size, (320, 180));
     assert!(summary.contains("320x180, 1 spp, whitted gouraud"), "{summary}");
+}
+
+#[test]
+fn a_lighting_scale_renders_the_one_pass_preview_at_full_size() {
+    let (summary, size) = render(
+        "one-pass",
+        &["--preset", "preview", "--size", "64x36", "--lighting-scale", "4"],
+    );
+    assert_eq!(size, (64, 36));
+    assert!(
+        summary.contains("64x36, 1 spp, path max_depth 3, reflected light at 1/4 size"),
+        "{summary}"
+    );
     // The one-pass preview is no set of samples to refine to a clock.
     let out = lucent()
         .args([
             "render",
             "res/scenes/seed.toml",
-            "--preset",
-            "preview",
-            "--time-budget",
-            "1s",
-            "-o",
+            "--lighting-scale",
+            "4",
+            "--integrator",
+            "path",
         ])
-        .arg(scratch("presets", "preview-budget").join("x.png"))
+        .args(["--time-budget", "1s", "-o"])
+        .arg(scratch("presets", "one-pass-budget").join("x.png"))
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);

@@ -531,7 +531,7 @@ fn one_pass(settings: &RenderSettings) -> bool {
 }
 
 /// The still image of a one-pass preview (`RenderSettings::lighting_scale`
-/// above 1, the `preview` preset): rendered whole at `size`, its reflected
+/// above 1): rendered whole at `size`, its reflected
 /// light denoised when denoising is on (else smoothed), as `lucent render`
 /// and `cargo xtask tradeoff` make it. Not cancellable, but it is the
 /// cheapest image the ladder has. Returns the frame and the image (a
