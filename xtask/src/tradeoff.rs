@@ -40,6 +40,7 @@ use lucent_denoise::emission::{DirectEmission, EMISSION_SPP};
 use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
 use lucent_render::aov::AovFilm;
+use lucent_render::preview::{EMISSION_GRID, PreviewPasses};
 use lucent_render::quality::{PRESETS, QualityPreset, WHITTED};
 use lucent_render::{
     Film, Integrator, RenderSettings, current_threads, extract_with, metrics, render, render_samples_aov, with_threads,
@@ -330,6 +331,7 @@ fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult
             render_s: reference.render_s,
             cached: reference.cached,
             key: reference.key.clone(),
+            sources_changed: reference.sources_changed,
         },
         presets,
     };
@@ -363,7 +365,8 @@ fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult
     Ok(result)
 }
 
-/// The reference from the cache, or rendered and stored.
+/// The reference from the cache, its missing batches rendered and stored
+/// (see `reference.rs`).
 fn get_reference(
     path: &Path,
     stem: &str,
@@ -373,38 +376,62 @@ fn get_reference(
     cache: &Path,
 ) -> Result<Reference, String> {
     let root = crate::root();
-    let (key, manifest) = reference::cache_key(&root, path, bytes, settings, &reference::renderer_inputs(&root))?;
-    let exr = cache.join(format!("{stem}-{key}.exr"));
-    if let Some((image, noise_rmse, render_s)) = reference::load_cached(&exr)
-        && image.width == settings.width
-        && image.height == settings.height
-    {
-        println!("  reference from the cache: {}", exr.display());
-        return Ok(Reference {
-            image,
-            noise_rmse,
-            render_s,
-            cached: true,
-            key,
-        });
-    }
-    println!(
-        "  rendering the reference ({}); cached as {}",
-        settings.describe(),
-        exr.display()
-    );
+    let (key, manifest) = reference::cache_key(&root, path, bytes, settings)?;
+    let sources = reference::sources_hash(&root, &reference::renderer_inputs(&root))?;
+    let batches = reference::BatchCache::new(cache.join(format!("{stem}-{key}")));
     let rs = extract_with(scene, &lucent_render::ExtractOptions::default())
         .map_err(|e| format!("{}: {e}", path.display()))?;
-    let (image, noise_rmse, render_s) = reference::render_reference(&rs, &scene.settings, settings, &|done, secs| {
-        println!("    batch {done}/{} done, {secs:.0} s", settings.chunks);
-    });
-    reference::store(&exr, &image, noise_rmse, render_s, &manifest)?;
+    let probe = reference::probe(&rs, &scene.settings, settings);
+    let recorded = batches.probe_record();
+    let sources_changed = match &recorded {
+        Some(r) if r.probe == probe => {
+            if r.sources != sources {
+                println!(
+                    "  note: the renderer's sources changed since the cached batches were rendered, but their probe (every pixel's first sample) is identical; kept"
+                );
+            }
+            r.sources != sources
+        }
+        _ => {
+            if recorded.is_some() {
+                println!("  the renderer draws differently now (probe {probe} differs); rendering the reference again");
+            }
+            let record = reference::ProbeRecord {
+                probe: probe.clone(),
+                sources: sources.clone(),
+            };
+            batches.reset(&record, &manifest)?;
+            false
+        }
+    };
+    println!(
+        "  reference: {}; batches cached in {}",
+        settings.describe(),
+        batches.dir().display()
+    );
+    let (mut images, mut render_s, mut cached) = (Vec::new(), 0.0, true);
+    for i in 0..settings.chunks.max(1) {
+        let (image, secs) = match batches.load(i, settings.width, settings.height) {
+            Some(b) => b,
+            None => {
+                cached = false;
+                let (image, secs) = reference::render_batch(&rs, &scene.settings, settings, i);
+                batches.store(i, settings.width, settings.height, &image, secs)?;
+                println!("    batch {}/{} rendered in {secs:.0} s", i + 1, settings.chunks);
+                (image, secs)
+            }
+        };
+        images.push(image);
+        render_s += secs;
+    }
+    let (image, noise_rmse) = reference::combine(settings.width, settings.height, &images);
     Ok(Reference {
         image,
         noise_rmse,
         render_s,
-        cached: false,
+        cached,
         key,
+        sources_changed,
     })
 }
 
@@ -427,6 +454,25 @@ fn time_rung(
         let _ = rs.flat_bvh();
     }
     let extract_s = start.elapsed().as_secs_f64();
+    if rung.denoise && settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+        // A preview: its reflected light denoised at the reduced size,
+        // guided by the same samples' buffers, then put together.
+        let denoiser = denoiser.ok_or("a denoised rung without a denoiser")?;
+        let start = Instant::now();
+        let passes = PreviewPasses::render(&rs, &settings);
+        let render_s = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let (denoised, _) = denoiser
+            .denoise_film(&passes.reflected, Some(&passes.aovs), Quality::High)
+            .map_err(|e| e.to_string())?;
+        let film = passes.compose(&denoised);
+        let timing = Timing {
+            extract_s,
+            render_s,
+            denoise_s: start.elapsed().as_secs_f64(),
+        };
+        return Ok((timing, Image::from_film(&film)));
+    }
     if rung.denoise {
         let denoiser = denoiser.ok_or("a denoised rung without a denoiser")?;
         let (w, h) = (settings.width.max(1), settings.height.max(1));
@@ -477,6 +523,12 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
             if s.clamp_indirect > 0.0 {
                 d += &format!(", indirect clamped at {}", s.clamp_indirect);
             }
+            if s.lighting_scale > 1 {
+                d += &format!(
+                    ", reflected light traced at 1/{} size and scaled up, lights seen directly at full size ({EMISSION_GRID}x{EMISSION_GRID} rays per pixel)",
+                    s.lighting_scale
+                );
+            }
             d
         }
     };
@@ -487,7 +539,9 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
         p.resolution_scale,
         s.spp,
         p.bvh_quality.name(),
-        if denoise {
+        if denoise && s.lighting_scale > 1 {
+            ", OIDN RT (albedo, normal) on the reflected light".to_owned()
+        } else if denoise {
             format!(", OIDN RT (albedo, normal), emitters seen directly apart at {EMISSION_SPP} spp")
         } else {
             String::new()
@@ -631,8 +685,14 @@ mod tests {
         // 32 spp in 16 batches: a noise estimate exists.
         assert!(first.reference.noise_rmse.is_finite() && first.reference.noise_rmse > 0.0);
         assert!(out.join("tiny-contact.png").is_file());
-        let cached = std::fs::read_dir(out.join("cache")).map_or(0, |d| d.count());
-        assert_eq!(cached, 2, "an EXR and its manifest");
+        let count = |dir: &Path| std::fs::read_dir(dir).map_or(0, |d| d.count());
+        assert_eq!(count(&out.join("cache")), 1, "one folder for the one reference");
+        let batches = out.join(format!("cache/tiny-{}", first.reference.key));
+        assert_eq!(
+            count(&batches),
+            1 + 2 * REF_CHUNKS as usize,
+            "the probe, and an EXR and its time per batch"
+        );
         let again = measure_scene(&scene, &opts, &out).unwrap_or_else(|e| panic!("{e}"));
         assert!(again.reference.cached);
         assert_eq!(again.reference.key, first.reference.key);

@@ -8,7 +8,7 @@
 //! next-event estimation and MIS ([`path`]). Both read a hit through one
 //! record ([`interaction`]). [`progressive`] renders to a time budget or,
 //! sampling adaptively, to an estimated error; [`quality`] holds the named
-//! presets.
+//! presets, and [`preview`] the cheapest one's picture.
 //!
 //! Invariants:
 //! - only `extract.rs` sees hecs; the kernel works on [`RenderScene`];
@@ -49,6 +49,7 @@ pub mod lights;
 pub mod metrics;
 pub mod partial;
 pub mod path;
+pub mod preview;
 pub mod progressive;
 pub mod quality;
 mod render;

@@ -4,7 +4,7 @@ use crate::aov::{AovFilm, AovSample};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
-use lucent_geom::{Pcg32, Vec3, hash_u64};
+use lucent_geom::{Pcg32, Ray, Vec3, hash_u64};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -82,8 +82,13 @@ pub struct RenderOutput {
 
 /// Renders `settings.spp` samples per pixel of a `settings.width` x
 /// `settings.height` image. `progress` is called with the number of rows
-/// finished (from worker threads, in no particular order).
+/// finished (from worker threads, in no particular order). A path-traced
+/// render with [`RenderSettings::lighting_scale`] above 1 is the one-pass
+/// preview of [`crate::preview`] (which reports no progress).
 pub fn render(scene: &RenderScene, settings: &RenderSettings, progress: &(dyn Fn(usize) + Sync)) -> RenderOutput {
+    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+        return crate::preview::render_preview(scene, settings);
+    }
     let mut film = Film::new(settings.width.max(1), settings.height.max(1));
     let start = Instant::now();
     let stats = render_samples(scene, settings, &mut film, 0..settings.spp.max(1), progress);
@@ -258,34 +263,40 @@ impl<'a> PixelSampler<'a> {
         match &self.tracer {
             Tracer::Whitted(_) => self.sample(col, row, s, stats),
             Tracer::Path(path) => {
-                let pixel_idx = u64::from(row) * self.width + u64::from(col);
-                let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
-                let (jx, jy) = (rng.next_f32(), rng.next_f32());
-                let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
+                let (ray, mut rng) = self.path_start(col, row, s);
                 path.trace_primary_aov(ray, &mut rng, stats, aov)
             }
         }
     }
 
+    /// The path tracer's camera ray for sample `s` of pixel (`col`, `row`),
+    /// and the random stream its path goes on with: every sample uniform
+    /// over the pixel (a box filter), keyed by (seed, pixel, sample).
+    #[inline]
+    pub(crate) fn path_start(&self, col: u32, row: u32, s: u32) -> (Ray, Pcg32) {
+        let pixel_idx = u64::from(row) * self.width + u64::from(col);
+        let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
+        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+        (self.camera.ray(col as f32 + jx, row as f32 + jy), rng)
+    }
+
     /// Radiance of sample `s` of pixel (`col`, `row`).
     #[inline]
     pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
-        let pixel_idx = u64::from(row) * self.width + u64::from(col);
-        let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
         match &self.tracer {
             Tracer::Whitted(whitted) => {
                 let (jx, jy) = if s == 0 {
                     (0.5, 0.5)
                 } else {
+                    let pixel_idx = u64::from(row) * self.width + u64::from(col);
+                    let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
                     (rng.next_f32(), rng.next_f32())
                 };
                 let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
                 whitted.trace_primary(ray, stats)
             }
             Tracer::Path(path) => {
-                // Every sample uniform over the pixel: a box filter.
-                let (jx, jy) = (rng.next_f32(), rng.next_f32());
-                let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
+                let (ray, mut rng) = self.path_start(col, row, s);
                 path.trace_primary(ray, &mut rng, stats)
             }
         }

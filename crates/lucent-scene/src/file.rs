@@ -564,6 +564,10 @@ pub(crate) fn free_bounces<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32
     checked(d, |v: u32| v <= 64, "free_delta_bounces runs from 0 to 64").map(Some)
 }
 
+pub(crate) fn lighting_scale<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+    checked(d, |v: u32| (1..=16).contains(&v), "lighting_scale runs from 1 to 16").map(Some)
+}
+
 pub(crate) fn clamp_value<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f32>, D::Error> {
     checked(
         d,

@@ -13,7 +13,7 @@
 //! Enum settings implement [`Named`], so the file, the flags and the viewer
 //! share one table of names.
 
-use crate::file::{clamp_value, depth, free_bounces, image_size, named, rr_depth, spp, unit_interval};
+use crate::file::{clamp_value, depth, free_bounces, image_size, lighting_scale, named, rr_depth, spp, unit_interval};
 use lucent_geom::Named;
 use lucent_shading::color::aces_filmic;
 use serde::Deserialize;
@@ -139,6 +139,11 @@ pub struct RenderSettings {
     /// With a short `max_depth`, a glass object then still shows what lies
     /// behind it instead of black.
     pub free_delta_bounces: u32,
+    /// Path tracer: when above 1, a one-pass preview: the light reflected
+    /// off surfaces is path traced at `1 / lighting_scale` of the width and
+    /// height and scaled up, while the lights the camera sees are drawn at
+    /// full size (`lucent_render::preview`); 1 renders every pixel.
+    pub lighting_scale: u32,
 }
 
 impl Default for RenderSettings {
@@ -157,6 +162,7 @@ impl Default for RenderSettings {
             denoise: false,
             clamp_indirect: 0.0,
             free_delta_bounces: 0,
+            lighting_scale: 1,
         }
     }
 }
@@ -215,6 +221,10 @@ pub struct RenderOverrides {
     /// Delta bounces that do not count toward `max_depth` (0 to 64).
     #[serde(default, deserialize_with = "free_bounces")]
     pub free_delta_bounces: Option<u32>,
+    /// Reflected light traced at `1 / lighting_scale` of the size (1 to
+    /// 16; 1: every pixel).
+    #[serde(default, deserialize_with = "lighting_scale")]
+    pub lighting_scale: Option<u32>,
 }
 
 impl RenderOverrides {
@@ -233,6 +243,7 @@ impl RenderOverrides {
         denoise: None,
         clamp_indirect: None,
         free_delta_bounces: None,
+        lighting_scale: None,
     };
 
     /// Writes every setting that is `Some` into `settings`.
@@ -256,6 +267,7 @@ impl RenderOverrides {
         set(&mut s.denoise, self.denoise);
         set(&mut s.clamp_indirect, self.clamp_indirect);
         set(&mut s.free_delta_bounces, self.free_delta_bounces);
+        set(&mut s.lighting_scale, self.lighting_scale);
     }
 }
 
@@ -293,6 +305,7 @@ mod tests {
             denoise: Some(true),
             clamp_indirect: Some(8.0),
             free_delta_bounces: Some(9),
+            lighting_scale: Some(10),
         };
         all.apply(&mut s);
         let want = RenderSettings {
@@ -309,6 +322,7 @@ mod tests {
             denoise: true,
             clamp_indirect: 8.0,
             free_delta_bounces: 9,
+            lighting_scale: 10,
         };
         assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
     }

@@ -146,6 +146,12 @@ struct QualityArgs {
     /// --max-depth, at most N per path (0 to 64).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=64))]
     free_delta_bounces: Option<u32>,
+    /// Path tracer: trace the light reflected off surfaces at 1/N of the
+    /// width and height and scale it up, drawing the lights the camera sees
+    /// at full size (4 is the measured choice); 1 traces every pixel (1 to
+    /// 16).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16))]
+    lighting_scale: Option<u32>,
 }
 
 impl QualityArgs {
@@ -179,6 +185,7 @@ impl QualityArgs {
             denoise: self.denoise.then_some(true),
             clamp_indirect: self.clamp_indirect,
             free_delta_bounces: self.free_delta_bounces,
+            lighting_scale: self.lighting_scale,
             ..RenderOverrides::NONE
         }
     }

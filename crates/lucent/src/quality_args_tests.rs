@@ -91,7 +91,7 @@ fn explicit_flags_override_the_preset() {
     };
     preview.apply(&mut want);
     assert_eq!(s, want);
-    assert_eq!((s.width, s.height), (320, 180));
+    assert_eq!((s.width, s.height, s.lighting_scale), (320, 180, 1));
     // Each flag wins over the preset, whatever the order on the line.
     for args in [
         ["view", "--preset", "preview", "--size", "100x50", "--max-depth", "7"],

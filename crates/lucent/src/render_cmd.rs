@@ -9,6 +9,7 @@ use lucent_denoise::to_error::denoise_to_error;
 use lucent_denoise::{Denoised, Denoiser, Quality};
 use lucent_geom::Named;
 use lucent_render::aov::{AovFilm, AovImages};
+use lucent_render::preview::PreviewPasses;
 use lucent_render::{
     Film, Integrator, RenderOutput, RenderScene, RenderSettings, current_threads, extract_with, render_samples_aov,
     with_threads,
@@ -126,6 +127,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let settings = scene.settings;
+    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+        let mode = match (args.farm.part, args.time_budget, args.target_error) {
+            (Some(share), _, _) => Some(format!("--part {share}")),
+            (_, Some(_), _) => Some("--time-budget".to_owned()),
+            (_, _, Some(_)) => Some("--target-error".to_owned()),
+            _ => None,
+        };
+        if let Some(mode) = mode {
+            bail!(
+                "{mode} with a lighting scale of {} (--lighting-scale or [render] lighting_scale) is refused: that \
+                 preview is one pass whose reflected light is traced at a fraction of the size, not samples \
+                 to refine or share out; add --lighting-scale 1",
+                settings.lighting_scale
+            );
+        }
+    }
     let threads = args.threads.map_or(0, usize::from);
     let want_aovs = settings.denoise || !args.aov.is_empty();
     if want_aovs && settings.integrator != Integrator::Path {
@@ -160,10 +177,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         let made = match (args.target_error, &denoiser) {
             (Some(target), Some(d)) => render_denoised_to_error(&rs, &settings, d, target, &bar)?,
             _ => {
-                let (out, aovs, refined) = render_mode(&rs, &settings, &args, want_aovs, &bar);
+                let (out, aovs, preview, refined) = render_mode(&rs, &settings, &args, want_aovs, &bar);
                 Made {
                     out,
                     aovs,
+                    preview,
                     images: None,
                     refined,
                     denoised_note: None,
@@ -176,6 +194,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let Made {
         mut out,
         aovs,
+        preview,
         images,
         refined,
         denoised_note,
@@ -184,15 +203,26 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let denoised_note = match (denoised_note, &denoiser) {
         (Some(note), _) => note,
         (None, Some(denoiser)) => {
-            // The emitters the camera sees stay out of the filter (see
-            // lucent_denoise::emission); rendered with the samples' settings.
-            let sampled = RenderSettings {
-                spp: out.film.n_samples(),
-                ..settings
+            let d = if let Some(passes) = &preview {
+                // A preview: its reflected light, at the reduced size,
+                // guided by the same samples' buffers; the lights it draws
+                // apart stay out of the filter.
+                let (film, d) = denoiser.denoise_film(&passes.reflected, Some(&passes.aovs), Quality::High)?;
+                out.film = passes.compose(&film);
+                d
+            } else {
+                // The emitters the camera sees stay out of the filter (see
+                // lucent_denoise::emission); rendered with the samples'
+                // settings.
+                let sampled = RenderSettings {
+                    spp: out.film.n_samples(),
+                    ..settings
+                };
+                let emission = with_threads(threads, || DirectEmission::render(&rs, &sampled))?;
+                let (film, d) = denoiser.denoise_render(&out.film, aovs.as_ref(), emission.as_ref(), Quality::High)?;
+                out.film = film;
+                d
             };
-            let emission = with_threads(threads, || DirectEmission::render(&rs, &sampled))?;
-            let (film, d) = denoiser.denoise_render(&out.film, aovs.as_ref(), emission.as_ref(), Quality::High)?;
-            out.film = film;
             denoise_note(&d)
         }
         (None, None) => String::new(),
@@ -245,6 +275,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .collect();
     let mode = match settings.integrator {
         Integrator::Whitted => format!("whitted {}", settings.shading.name()),
+        Integrator::Path if settings.lighting_scale > 1 => format!(
+            "path max_depth {}, reflected light at 1/{} size",
+            settings.max_depth, settings.lighting_scale
+        ),
         Integrator::Path => format!("path max_depth {}", settings.max_depth),
     };
     let (what, per_spp) = match refined {
@@ -271,6 +305,8 @@ struct Made {
     out: RenderOutput,
     /// The guide buffers as sums, when the render recorded them.
     aovs: Option<AovFilm>,
+    /// A one-pass preview's passes ([`RenderSettings::lighting_scale`]).
+    preview: Option<PreviewPasses>,
     /// The guide buffers as images, when the render made them so.
     images: Option<AovImages>,
     /// What a time budget or an error target reached.
@@ -333,45 +369,57 @@ fn render_denoised_to_error(
             elapsed: r.render_time,
         },
         aovs: None,
+        preview: None,
         images: Some(r.guides),
         refined: Some(refined),
         denoised_note: Some(denoise_note(&r.denoised)),
     })
 }
 
-/// Renders as the arguments ask: a plain render, to a time budget, or to an
-/// error target. Returns the output, the feature buffers when `aovs`, and,
-/// for the last two modes, what they reached, for the summary line.
+/// Renders as the arguments ask: a plain render, a preview
+/// ([`RenderSettings::lighting_scale`]), to a time budget, or to an error
+/// target. Returns the output, the feature buffers when `aovs` (a
+/// preview's only for `--aov`: it denoises its own), a preview's passes,
+/// and, for time budgets and error targets, what they reached, for the
+/// summary line.
 fn render_mode(
     rs: &RenderScene,
     settings: &RenderSettings,
     args: &RenderArgs,
     aovs: bool,
     bar: &ProgressBar,
-) -> (RenderOutput, Option<AovFilm>, Option<String>) {
-    let (out, aov_film, refined) = render_image(rs, settings, args, aovs, bar);
+) -> (RenderOutput, Option<AovFilm>, Option<PreviewPasses>, Option<String>) {
+    let (out, aov_film, preview, refined) = render_image(rs, settings, args, aovs, bar);
     // Modes that sample unevenly or to a clock record no AOVs: guide
     // buffers from a short separate pass.
-    let aov_film = aov_film.or_else(|| {
-        aovs.then(|| {
-            let (w, h) = (out.film.width(), out.film.height());
-            let mut scratch = Film::new(w, h);
-            let mut aov_film = AovFilm::new(w, h);
-            render_samples_aov(rs, settings, &mut scratch, &mut aov_film, 0..GUIDE_SPP, &|_| {});
-            aov_film
-        })
-    });
-    (out, aov_film, refined)
+    let wanted = if preview.is_some() { !args.aov.is_empty() } else { aovs };
+    let aov_film =
+        aov_film.or_else(|| wanted.then(|| guide_buffers(rs, settings, out.film.width(), out.film.height())));
+    (out, aov_film, preview, refined)
 }
 
-/// [`render_mode`] without the guide pass: only a plain render records AOVs.
+/// Feature buffers of a `w` x `h` image from a short pass of their own.
+fn guide_buffers(rs: &RenderScene, settings: &RenderSettings, w: u32, h: u32) -> AovFilm {
+    let full = RenderSettings {
+        width: w,
+        height: h,
+        ..*settings
+    };
+    let mut scratch = Film::new(w, h);
+    let mut aov_film = AovFilm::new(w, h);
+    render_samples_aov(rs, &full, &mut scratch, &mut aov_film, 0..GUIDE_SPP, &|_| {});
+    aov_film
+}
+
+/// [`render_mode`] without the guide pass: only a plain render records AOVs;
+/// a preview returns its passes.
 fn render_image(
     rs: &RenderScene,
     settings: &RenderSettings,
     args: &RenderArgs,
     aovs: bool,
     bar: &ProgressBar,
-) -> (RenderOutput, Option<AovFilm>, Option<String>) {
+) -> (RenderOutput, Option<AovFilm>, Option<PreviewPasses>, Option<String>) {
     if let Some(share) = args.farm.part {
         let out = lucent_render::partial::render_share(rs, settings, share, &|rows| bar.set_position(rows as u64));
         let r = share.samples(settings.spp);
@@ -382,7 +430,7 @@ fn render_image(
             settings.spp,
             out.elapsed.as_secs_f64() / r.len().max(1) as f64
         );
-        return (out, None, Some(refined));
+        return (out, None, None, Some(refined));
     }
     if let Some(budget) = args.time_budget {
         bar.set_style(
@@ -403,7 +451,7 @@ fn render_image(
             "time budget {budget_s} s: {spp} spp reached{capped}, {samples} samples, {secs:.3} s elapsed ({:+.1}% of the budget)",
             (secs / budget_s - 1.0) * 100.0
         );
-        return (out, None, Some(refined));
+        return (out, None, None, Some(refined));
     }
     if let Some(target) = args.target_error {
         bar.set_style(
@@ -432,7 +480,19 @@ fn render_image(
             stats: out.stats,
             elapsed: out.elapsed,
         };
-        return (plain, None, Some(refined));
+        return (plain, None, None, Some(refined));
+    }
+    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+        let start = Instant::now();
+        let passes = PreviewPasses::render(rs, settings);
+        let film = passes.compose(&passes.smoothed());
+        bar.set_position(u64::from(settings.height));
+        let out = RenderOutput {
+            film,
+            stats: passes.stats,
+            elapsed: start.elapsed(),
+        };
+        return (out, None, Some(passes), None);
     }
     let (w, h) = (settings.width.max(1), settings.height.max(1));
     let mut film = Film::new(w, h);
@@ -450,5 +510,5 @@ fn render_image(
         stats,
         elapsed: start.elapsed(),
     };
-    (out, aovs.then_some(aov_film), None)
+    (out, aovs.then_some(aov_film), None, None)
 }

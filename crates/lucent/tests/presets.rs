@@ -31,6 +31,24 @@ fn preview_path_traces_at_half_size_and_whitted_keeps_the_report_model() {
 }
 
 #[test]
+fn a_lighting_scale_renders_the_one_pass_preview_at_full_size() {
+    let (summary, size) = render("one-pass", "--preset preview --size 64x36 --lighting-scale 4");
+    assert_eq!(size, (64, 36));
+    assert!(
+        summary.contains("64x36, 1 spp, path max_depth 3, reflected light at 1/4 size"),
+        "{summary}"
+    );
+    // The one-pass preview is no set of samples to refine to a clock.
+    let png = scratch("presets", "one-pass-budget").join("x.png");
+    let err = run_fail(
+        1,
+        "render res/scenes/seed.toml --lighting-scale 4 --integrator path --time-budget 1s -o",
+        &[s(&png)],
+    );
+    assert!(err.contains("--time-budget with a lighting scale of 4"), "{err}");
+}
+
+#[test]
 fn explicit_flags_win_over_the_preset() {
     let (summary, size) = render("final", "--preset final --size 48x27 --spp 2 --max-depth 3");
     assert_eq!(size, (48, 27));

@@ -1,24 +1,33 @@
 //! The converged reference of a scene: rendered once by the path tracer,
-//! cached under `target/tradeoff/cache/`, with an estimate of its own noise.
+//! cached batch by batch under `target/tradeoff/cache/`, with an estimate of
+//! its own noise.
 //!
 //! Cache key: a 64-bit FNV-1a hash over, in order,
 //! 1. the scene file's bytes;
 //! 2. the bytes of every file the scene names (any string in the TOML that
 //!    is the path of an existing file, relative to the scene) and of every
 //!    file beside it in its folder (an OBJ's MTL and textures);
-//! 3. the reference settings, as text ([`RefSettings::describe`]);
-//! 4. the renderer's code: every file under `src/` of lucent-geom,
-//!    lucent-accel, lucent-shading, lucent-scene, lucent-assets and
-//!    lucent-render except `quality.rs` (the presets, which the reference
-//!    does not use), their `Cargo.toml`s, the workspace `Cargo.lock` and
-//!    this file (how the reference is rendered), in path order, each
-//!    preceded by its path.
+//! 3. the reference settings, as text ([`RefSettings::describe`]).
 //!
-//! Changing any of these renders the reference again; the compiler version
-//! and profile are not part of the key (the output is deterministic across
-//! them as far as we have seen; delete the cache folder to force a render).
-//! The cache holds `STEM-KEY.exr` (linear radiance) and `STEM-KEY.txt`
-//! (what went into it and the measured noise).
+//! The renderer's code is checked by what it does, not by its text: the
+//! cache holds a *probe*, a hash of the exact per-pixel sums of the
+//! reference's first sample (sample 0 of every pixel, at the reference's
+//! size and settings), and every run renders that sample again and compares.
+//! A different probe means the renderer now traces other paths, and the
+//! stored batches are thrown away and rendered again. A change that keeps
+//! the probe (a faster traversal giving the same hits, new feature buffers
+//! beside an untouched beauty image, a comment) keeps the reference, which
+//! at 8192 samples takes hours on a loaded two-core machine. What a probe
+//! cannot see is a change that leaves every pixel's first sample bit for
+//! bit alone and alters later ones only; the manifest also records a hash
+//! of the renderer's sources ([`renderer_inputs`]), and the report says
+//! when it differs from the one the batches were rendered with. Delete the
+//! folder to force a render.
+//!
+//! The folder `STEM-KEY/` holds `probe.txt` (the probe, the source hash and
+//! what went into the key) and, per finished batch, `batch-NN.exr` (its
+//! linear radiance, 32-bit float) and `batch-NN.txt` (its render time), so
+//! an interrupted reference resumes at the first missing batch.
 
 use super::imaging::Image;
 use lucent_geom::{DVec3, Vec3};
@@ -92,12 +101,15 @@ pub struct Reference {
     /// spread of its batches (standard error of their mean, RMS over pixels
     /// and channels).
     pub noise_rmse: f64,
-    /// Wall time of its render, seconds.
+    /// Wall time of its render, seconds (its batches' times added up).
     pub render_s: f64,
-    /// Whether it came from the cache.
+    /// Whether every batch came from the cache.
     pub cached: bool,
     /// The cache key, 16 hex digits.
     pub key: String,
+    /// Whether the renderer's sources differ from those that rendered the
+    /// cached batches (whose probe still matched; see the module docs).
+    pub sources_changed: bool,
 }
 
 /// 64-bit FNV-1a, stable across Rust versions (unlike `DefaultHasher`).
@@ -196,70 +208,173 @@ pub fn cache_key(
     scene_file: &Path,
     scene_bytes: &[u8],
     settings: &RefSettings,
-    renderer: &[PathBuf],
 ) -> Result<(String, String), String> {
     let mut h = Fnv::default();
     let mut manifest = String::new();
     h.add(scene_bytes);
     let _ = writeln!(manifest, "scene {}", scene_file.display());
     let text = String::from_utf8_lossy(scene_bytes);
-    let rel = |p: &Path| p.strip_prefix(root).unwrap_or(p).display().to_string();
     for f in scene_inputs(scene_file, &text) {
         let bytes = std::fs::read(&f).map_err(|e| format!("{}: {e}", f.display()))?;
-        h.add(rel(&f).as_bytes());
+        h.add(relative(root, &f).as_bytes());
         h.add(&bytes);
-        let _ = writeln!(manifest, "input {}", rel(&f));
+        let _ = writeln!(manifest, "input {}", relative(root, &f));
     }
     h.add(settings.describe().as_bytes());
     let _ = writeln!(manifest, "settings {}", settings.describe());
-    let mut code = Fnv::default();
-    for f in renderer {
-        let bytes = std::fs::read(f).map_err(|e| format!("{}: {e}", f.display()))?;
-        code.add(rel(f).as_bytes());
-        code.add(&bytes);
-    }
-    h.add(code.hex().as_bytes());
-    let _ = writeln!(manifest, "renderer {} files, hash {}", renderer.len(), code.hex());
     Ok((h.hex(), manifest))
 }
 
-/// Renders the reference in `settings.chunks` batches and estimates its
-/// noise from their spread. `progress` is told each finished batch.
-pub fn render_reference(
+/// `path` relative to `root` when inside it.
+fn relative(root: &Path, path: &Path) -> String {
+    path.strip_prefix(root).unwrap_or(path).display().to_string()
+}
+
+/// Hash of the renderer's sources (`files`, from [`renderer_inputs`]), each
+/// preceded by its path.
+pub fn sources_hash(root: &Path, files: &[PathBuf]) -> Result<String, String> {
+    let mut code = Fnv::default();
+    for f in files {
+        let bytes = std::fs::read(f).map_err(|e| format!("{}: {e}", f.display()))?;
+        code.add(relative(root, f).as_bytes());
+        code.add(&bytes);
+    }
+    Ok(code.hex())
+}
+
+/// The probe (see the module docs): a hash of the exact sums of sample 0 of
+/// every pixel, rendered with the reference's settings.
+pub fn probe(rs: &RenderScene, scene_settings: &RenderSettings, settings: &RefSettings) -> String {
+    let batch = settings.render_settings(scene_settings);
+    let mut film = Film::new(settings.width, settings.height);
+    render_samples(rs, &batch, &mut film, 0..1, &|_| {});
+    let mut h = Fnv::default();
+    for s in film.sums() {
+        let (rgb, non_finite) = s.raw();
+        for c in rgb {
+            h.add(&c.to_le_bytes());
+        }
+        h.add(&non_finite.to_le_bytes());
+    }
+    h.hex()
+}
+
+/// The files of a reference's cache folder.
+#[derive(Clone, Debug)]
+pub struct BatchCache {
+    dir: PathBuf,
+}
+
+/// What `probe.txt` records.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProbeRecord {
+    /// The probe hash.
+    pub probe: String,
+    /// The renderer's sources hash.
+    pub sources: String,
+}
+
+impl BatchCache {
+    /// The folder `dir` (created on first store).
+    pub fn new(dir: PathBuf) -> Self {
+        Self { dir }
+    }
+
+    /// The folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    fn batch_exr(&self, i: u32) -> PathBuf {
+        self.dir.join(format!("batch-{i:02}.exr"))
+    }
+
+    /// The recorded probe, if any.
+    pub fn probe_record(&self) -> Option<ProbeRecord> {
+        let text = std::fs::read_to_string(self.dir.join("probe.txt")).ok()?;
+        let field = |name: &str| -> Option<String> {
+            text.lines()
+                .find_map(|l| l.strip_prefix(name).map(|v| v.trim().to_owned()))
+        };
+        Some(ProbeRecord {
+            probe: field("probe ")?,
+            sources: field("sources ")?,
+        })
+    }
+
+    /// Forgets every batch and records `record` (with the key's manifest).
+    pub fn reset(&self, record: &ProbeRecord, manifest: &str) -> Result<(), String> {
+        if self.dir.exists() {
+            std::fs::remove_dir_all(&self.dir).map_err(|e| format!("{}: {e}", self.dir.display()))?;
+        }
+        std::fs::create_dir_all(&self.dir).map_err(|e| format!("{}: {e}", self.dir.display()))?;
+        let p = self.dir.join("probe.txt");
+        let text = format!("{manifest}probe {}\nsources {}\n", record.probe, record.sources);
+        std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))
+    }
+
+    /// Batch `i` (its mean radiance and render seconds) when stored and
+    /// `width` x `height`.
+    pub fn load(&self, i: u32, width: u32, height: u32) -> Option<(Vec<Vec3>, f64)> {
+        let exr = self.batch_exr(i);
+        let bytes = std::fs::read(&exr).ok()?;
+        let (w, h, rgb) = lucent_assets::decode_exr(&bytes, &exr).ok()?;
+        if (w, h) != (width, height) {
+            return None;
+        }
+        let secs = std::fs::read_to_string(exr.with_extension("txt"))
+            .ok()?
+            .lines()
+            .find_map(|l| l.strip_prefix("render_s ").and_then(|v| v.trim().parse().ok()))?;
+        Some((rgb.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect(), secs))
+    }
+
+    /// Stores batch `i`: the image first, then the time, whose file marks
+    /// the batch complete.
+    pub fn store(&self, i: u32, width: u32, height: u32, pixels: &[Vec3], secs: f64) -> Result<(), String> {
+        std::fs::create_dir_all(&self.dir).map_err(|e| format!("{}: {e}", self.dir.display()))?;
+        let exr = self.batch_exr(i);
+        let rgb: Vec<f32> = pixels.iter().flat_map(|p| p.to_array()).collect();
+        lucent_assets::save_exr(&exr, width, height, &rgb).map_err(|e| e.to_string())?;
+        let txt = exr.with_extension("txt");
+        std::fs::write(&txt, format!("render_s {secs}\n")).map_err(|e| format!("{}: {e}", txt.display()))
+    }
+}
+
+/// Renders batch `i` of the reference: samples `i * spp / chunks` on, as
+/// one continued sample sequence, so the batches together are one render
+/// of `spp` samples. Returns its mean radiance and wall time.
+pub fn render_batch(
     rs: &RenderScene,
     scene_settings: &RenderSettings,
     settings: &RefSettings,
-    progress: &dyn Fn(u32, f64),
-) -> (Image, f64, f64) {
+    i: u32,
+) -> (Vec<Vec3>, f64) {
     let start = Instant::now();
     let batch = settings.render_settings(scene_settings);
-    let n = (settings.width * settings.height) as usize;
+    let mut film = Film::new(settings.width, settings.height);
+    let first = i * batch.spp;
+    render_samples(rs, &batch, &mut film, first..first + batch.spp, &|_| {});
+    (film.to_linear(), start.elapsed().as_secs_f64())
+}
+
+/// The mean of the batches and its noise ([`batch_noise`]).
+pub fn combine(width: u32, height: u32, batches: &[Vec<Vec3>]) -> (Image, f64) {
+    let n = (width * height) as usize;
     let mut sum = vec![DVec3::ZERO; n];
     let mut sum_sq = vec![DVec3::ZERO; n];
-    let chunks = settings.chunks.max(1);
-    for i in 0..chunks {
-        let mut film = Film::new(settings.width, settings.height);
-        // Batches continue one sample sequence, so together they are one
-        // render of `spp` samples.
-        let first = i * batch.spp;
-        render_samples(rs, &batch, &mut film, first..first + batch.spp, &|_| {});
-        for ((s, q), p) in sum.iter_mut().zip(&mut sum_sq).zip(film.to_linear()) {
+    for b in batches {
+        for ((s, q), p) in sum.iter_mut().zip(&mut sum_sq).zip(b) {
             let p = p.as_dvec3();
             *s += p;
             *q += p * p;
         }
-        progress(i + 1, start.elapsed().as_secs_f64());
     }
-    let k = f64::from(chunks);
-    let pixels: Vec<Vec3> = sum.iter().map(|s| (*s / k).as_vec3()).collect();
+    let k = batches.len().max(1) as f64;
+    let pixels = sum.iter().map(|s| (*s / k).as_vec3()).collect();
     (
-        Image {
-            width: settings.width,
-            height: settings.height,
-            pixels,
-        },
-        batch_noise(&sum, &sum_sq, chunks),
-        start.elapsed().as_secs_f64(),
+        Image { width, height, pixels },
+        batch_noise(&sum, &sum_sq, batches.len() as u32),
     )
 }
 
@@ -279,35 +394,6 @@ pub fn batch_noise(sum: &[DVec3], sum_sq: &[DVec3], k: u32) -> f64 {
     (total / (3.0 * sum.len() as f64)).sqrt()
 }
 
-/// Reads a cached reference: `Ok(None)` when absent or unreadable.
-pub fn load_cached(exr: &Path) -> Option<(Image, f64, f64)> {
-    let bytes = std::fs::read(exr).ok()?;
-    let (width, height, rgb) = lucent_assets::decode_exr(&bytes, exr).ok()?;
-    let meta = std::fs::read_to_string(exr.with_extension("txt")).ok()?;
-    let field = |name: &str| -> Option<f64> {
-        meta.lines()
-            .find_map(|l| l.strip_prefix(name).and_then(|v| v.trim().parse().ok()))
-    };
-    let pixels = rgb.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
-    Some((
-        Image { width, height, pixels },
-        field("noise_rmse ")?,
-        field("render_s ")?,
-    ))
-}
-
-/// Writes the reference and its manifest into the cache.
-pub fn store(exr: &Path, image: &Image, noise_rmse: f64, render_s: f64, manifest: &str) -> Result<(), String> {
-    if let Some(dir) = exr.parent() {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    }
-    let rgb: Vec<f32> = image.pixels.iter().flat_map(|p| p.to_array()).collect();
-    lucent_assets::save_exr(exr, image.width, image.height, &rgb).map_err(|e| e.to_string())?;
-    let text = format!("{manifest}noise_rmse {noise_rmse}\nrender_s {render_s}\n");
-    let txt = exr.with_extension("txt");
-    std::fs::write(&txt, text).map_err(|e| format!("{}: {e}", txt.display()))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -320,15 +406,13 @@ mod tests {
     }
 
     #[test]
-    fn cache_key_follows_scene_assets_settings_and_code() {
+    fn cache_key_follows_scene_assets_and_settings() {
         let dir = scratch("key");
         let scene = dir.join("s.toml");
         let text = "[[objects]]\nmesh = \"meshes/a.obj\"\n";
         std::fs::write(&scene, text).unwrap_or_else(|e| panic!("{e}"));
         std::fs::write(dir.join("meshes/a.obj"), "v 0 0 0\n").unwrap_or_else(|e| panic!("{e}"));
         std::fs::write(dir.join("meshes/a.mtl"), "newmtl m\n").unwrap_or_else(|e| panic!("{e}"));
-        let code = dir.join("code.rs");
-        std::fs::write(&code, "fn main() {}\n").unwrap_or_else(|e| panic!("{e}"));
         let settings = RefSettings {
             width: 8,
             height: 4,
@@ -337,9 +421,8 @@ mod tests {
             max_depth: 16,
             rr_depth: 5,
         };
-        let key = |text: &str, s: &RefSettings| {
-            cache_key(&dir, &scene, text.as_bytes(), s, std::slice::from_ref(&code)).unwrap_or_else(|e| panic!("{e}"))
-        };
+        let key =
+            |text: &str, s: &RefSettings| cache_key(&dir, &scene, text.as_bytes(), s).unwrap_or_else(|e| panic!("{e}"));
         let (k0, manifest) = key(text, &settings);
         assert_eq!(k0.len(), 16);
         assert!(
@@ -368,23 +451,54 @@ mod tests {
         let k1 = key(text, &settings).0;
         assert_ne!(k1, k0);
         std::fs::write(dir.join("meshes/a.obj"), "v 0 0 1\n").unwrap_or_else(|e| panic!("{e}"));
-        let k2 = key(text, &settings).0;
-        assert_ne!(k2, k1);
-        // The renderer's code.
+        assert_ne!(key(text, &settings).0, k1);
+        // The sources hash follows the code; the real renderer's files are
+        // found.
+        let code = dir.join("code.rs");
+        std::fs::write(&code, "fn main() {}\n").unwrap_or_else(|e| panic!("{e}"));
+        let h0 = sources_hash(&dir, std::slice::from_ref(&code)).unwrap_or_else(|e| panic!("{e}"));
         std::fs::write(&code, "fn main() { }\n").unwrap_or_else(|e| panic!("{e}"));
-        assert_ne!(key(text, &settings).0, k2);
-        // The real renderer's files are found.
+        assert_ne!(
+            sources_hash(&dir, std::slice::from_ref(&code)).unwrap_or_else(|e| panic!("{e}")),
+            h0
+        );
         let files = renderer_inputs(&crate::root());
         assert!(
             files.iter().any(|f| f.ends_with("crates/lucent-render/src/path.rs")),
             "{files:?}"
         );
-        assert!(
-            files.iter().any(|f| f.ends_with("xtask/src/tradeoff/reference.rs")),
-            "{files:?}"
-        );
         assert!(!files.iter().any(|f| f.ends_with("quality.rs")), "{files:?}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn the_probe_follows_what_the_renderer_draws() {
+        let settings = RefSettings {
+            width: 12,
+            height: 8,
+            spp: 4,
+            chunks: 2,
+            max_depth: 8,
+            rr_depth: 5,
+        };
+        let probe_of = |scene: &lucent_scene::Scene| {
+            let rs = lucent_render::extract(scene).unwrap_or_else(|e| panic!("{e}"));
+            probe(&rs, &scene.settings, &settings)
+        };
+        let scene = lucent_scene::fixtures::ball_under_sun();
+        let p0 = probe_of(&scene);
+        assert_eq!(p0.len(), 16);
+        assert_eq!(probe_of(&scene), p0, "deterministic");
+        // Another scene seed does not matter (the reference has its own);
+        // the same scene with its camera turned does.
+        let mut reseeded = lucent_scene::fixtures::ball_under_sun();
+        reseeded.settings.seed = 99;
+        assert_eq!(probe_of(&reseeded), p0);
+        let mut turned = lucent_scene::fixtures::ball_under_sun();
+        for rig in turned.world.query_mut::<&mut lucent_scene::components::OrbitRig>() {
+            rig.phi += 0.2;
+        }
+        assert_ne!(probe_of(&turned), p0);
     }
 
     #[test]
@@ -398,19 +512,28 @@ mod tests {
     }
 
     #[test]
-    fn cache_round_trip() {
+    fn batches_round_trip_and_a_reset_forgets_them() {
         let dir = scratch("cache");
-        let exr = dir.join("cache/s-0123.exr");
-        let image = Image {
-            width: 3,
-            height: 2,
-            pixels: (0..6).map(|i| Vec3::new(i as f32, 0.5, 2.0)).collect(),
+        let cache = BatchCache::new(dir.join("cache/s-0123"));
+        let pixels: Vec<Vec3> = (0..6).map(|i| Vec3::new(i as f32, 0.5, 2.0)).collect();
+        assert!(cache.load(0, 3, 2).is_none());
+        assert!(cache.probe_record().is_none());
+        let record = ProbeRecord {
+            probe: "00ff".to_owned(),
+            sources: "abcd".to_owned(),
         };
-        assert!(load_cached(&exr).is_none());
-        store(&exr, &image, 0.0125, 42.5, "scene s.toml\n").unwrap_or_else(|e| panic!("{e}"));
-        let (back, noise, secs) = load_cached(&exr).unwrap_or_else(|| panic!("cached"));
-        assert_eq!(back, image);
-        assert_eq!((noise, secs), (0.0125, 42.5));
+        cache.reset(&record, "scene s.toml\n").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(cache.probe_record(), Some(record.clone()));
+        cache.store(1, 3, 2, &pixels, 42.5).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(cache.load(1, 3, 2), Some((pixels.clone(), 42.5)));
+        assert!(cache.load(1, 2, 3).is_none(), "another size");
+        assert!(cache.load(0, 3, 2).is_none(), "not stored");
+        cache.reset(&record, "").unwrap_or_else(|e| panic!("{e}"));
+        assert!(cache.load(1, 3, 2).is_none());
+        // The mean of two batches, and their spread.
+        let (image, noise) = combine(3, 2, &[pixels.clone(), pixels.iter().map(|p| *p + Vec3::ONE).collect()]);
+        assert_eq!(image.pixels[0], Vec3::new(0.5, 1.0, 2.5));
+        assert!((noise - 0.5).abs() < 1e-12, "{noise}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -97,6 +97,9 @@ pub struct ReferenceSummary {
     pub cached: bool,
     /// Cache key.
     pub key: String,
+    /// Whether the renderer's sources changed since its batches were
+    /// rendered (their probe matched, so they were kept).
+    pub sources_changed: bool,
 }
 
 /// One scene's results.
@@ -307,10 +310,10 @@ pub fn markdown(info: &RunInfo, scenes: &[SceneResult], plot: &str) -> String {
              of its batches' mean): RMSE {}, {}x below the best preset's RMSE {} (which it raises \
              by {}%, as independent errors add in quadrature).\n",
             r.describe,
-            if r.cached {
-                "from the cache"
-            } else {
-                "rendered by this run"
+            match (r.cached, r.sources_changed) {
+                (true, false) => "from the cache",
+                (true, true) => "from the cache (the renderer's sources changed since, its probe did not)",
+                (false, _) => "rendered by this run (or partly)",
             },
             sig(r.render_s, 3),
             r.key,
@@ -438,6 +441,7 @@ pub(crate) mod tests {
                 render_s: 12.0,
                 cached: true,
                 key: "0123456789abcdef".to_owned(),
+                sources_changed: false,
             },
             presets,
         }

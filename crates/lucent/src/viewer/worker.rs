@@ -7,7 +7,8 @@
 //! While the camera moves, the worker renders previews sized to the frame
 //! budget from measured costs ([`CostModel`]); when it holds still, it
 //! refines one film at the preset's resolution pass by pass up to the
-//! sample cap. A new
+//! sample cap (a one-pass preview, `RenderSettings::lighting_scale` above
+//! 1, is rendered whole instead, as `lucent render` makes it). A new
 //! request generation cancels a refinement pass in flight and restarts
 //! accumulation; the camera coming to rest cancels a preview in flight (the
 //! full-resolution pass it delays is what the user waits for); a cancelled
@@ -37,6 +38,7 @@
 use denoise::{DenoiseJob, denoise_job, denoise_loop};
 use lucent_denoise::{Denoiser, Quality};
 use lucent_render::aov::AovFilm;
+use lucent_render::preview::PreviewPasses;
 use lucent_render::{
     Film, Integrator, RenderScene, RenderSettings, Tonemap, render_samples_aov_cancellable, render_samples_cancellable,
 };
@@ -468,7 +470,8 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                     state = shared.wake.wait(state).unwrap_or_else(PoisonError::into_inner);
                     continue;
                 }
-                let cap = r.max_spp.max(1);
+                // A one-pass preview's film is done after its one pass.
+                let cap = if one_pass(&r.settings) { 1 } else { r.max_spp.max(1) };
                 let denoising = denoiser.will_denoise(&r.settings) && still.as_ref().is_some_and(Still::guided);
                 let handed = state.handed.filter(|h| h.0 == r.generation).map(|h| h.1);
                 let idle = state.denoise_job.is_none() && !state.denoise_busy;
@@ -502,9 +505,10 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                 scene.rig = r.rig;
                 // Loaded before the first pass, so the pass records what the
                 // denoiser needs only when there is one.
-                let dn = denoiser.get(&r.settings).is_some();
-                let denoising = dn && denoiser.will_denoise(&r.settings);
-                refine(&scene, &r, &mut costs, &mut still, denoising, &shared.cancel_refine)
+                let loaded = denoiser.get(&r.settings).cloned();
+                let denoising = loaded.is_some() && denoiser.will_denoise(&r.settings);
+                let dn = loaded.as_deref();
+                refine(&scene, &r, &mut costs, &mut still, dn, denoising, &shared.cancel_refine)
             }
             Job::HandOff(r) => {
                 scene.rig = r.rig;
@@ -609,17 +613,33 @@ fn denoise_preview(denoiser: &Denoiser, film: Film, aovs: &AovFilm, costs: &mut 
 /// One more pass of the still camera at the request's still scale, or
 /// `None` when a new request cancelled it (the still is then dropped).
 /// With `denoising`, the pass also records the guide buffers and, in an
-/// emissive scene, the emission its camera rays find.
+/// emissive scene, the emission its camera rays find. A one-pass preview
+/// (`RenderSettings::lighting_scale`) is rendered whole instead, its
+/// reflected light denoised by `denoiser` when denoising is on.
 fn refine(
     scene: &RenderScene,
     r: &Request,
     costs: &mut CostModel,
     still: &mut Option<Still>,
+    denoiser: Option<&Denoiser>,
     denoising: bool,
     cancel: &AtomicBool,
 ) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (rw, rh) = scaled_size(w, h, r.still_scale);
+    if one_pass(&r.settings) {
+        let (frame, film) = still_preview(scene, r, (rw, rh), costs, denoiser);
+        // A one-sample film without guide buffers: taken as finished, and
+        // never handed to the denoise thread (it denoised its own light).
+        *still = Some(Still {
+            generation: r.generation,
+            film,
+            aovs: AovFilm::new(1, 1),
+            emission: None,
+            emission_aa: None,
+        });
+        return Some(frame);
+    }
     let s = match still.take() {
         Some(s) if s.generation == r.generation && (s.film.width(), s.film.height()) == (rw, rh) => still.insert(s),
         _ => still.insert(Still {
@@ -679,6 +699,68 @@ fn first_hit(settings: &RenderSettings) -> RenderSettings {
         max_depth: 1,
         ..*settings
     }
+}
+
+/// Whether `settings` ask for a one-pass preview
+/// (`RenderSettings::lighting_scale` above 1 with the path tracer).
+fn one_pass(settings: &RenderSettings) -> bool {
+    settings.integrator == Integrator::Path && settings.lighting_scale > 1
+}
+
+/// The still image of a one-pass preview (`RenderSettings::lighting_scale`
+/// above 1): rendered whole at `size`, its reflected
+/// light denoised when denoising is on (else smoothed), as `lucent render`
+/// and `cargo xtask tradeoff` make it. Not cancellable, but it is the
+/// cheapest image the ladder has. Returns the frame and the image (a
+/// one-sample film, which [`work`] takes as finished).
+fn still_preview(
+    scene: &RenderScene,
+    r: &Request,
+    (rw, rh): (u32, u32),
+    costs: &mut CostModel,
+    denoiser: Option<&Denoiser>,
+) -> (Frame, Film) {
+    let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
+    // The sample cap in the one pass.
+    let sized = RenderSettings {
+        width: rw,
+        height: rh,
+        spp: r.max_spp.max(1),
+        ..r.settings
+    };
+    let start = Instant::now();
+    let passes = PreviewPasses::render(scene, &sized);
+    let render_s = start.elapsed().as_secs_f32();
+    let (reflected, denoise_s) = match denoiser.filter(|_| r.settings.denoise) {
+        Some(d) => {
+            let start = Instant::now();
+            match d.denoise_film(&passes.reflected, Some(&passes.aovs), Quality::High) {
+                Ok((out, _)) => (out, Some(start.elapsed().as_secs_f32())),
+                Err(e) => {
+                    eprintln!("warning: denoising failed, showing the undenoised frame: {e}");
+                    (passes.smoothed(), None)
+                }
+            }
+        }
+        None => (passes.smoothed(), None),
+    };
+    let still = passes.compose(&reflected);
+    let (pixels, output_s) = output(&still, w, h, r.settings.tonemap, costs);
+    let frame = Frame {
+        generation: r.generation,
+        rig: r.rig,
+        pixels,
+        width: rw,
+        height: rh,
+        samples: sized.spp,
+        refined: true,
+        render_s,
+        output_s,
+        denoise_s: denoise_s.unwrap_or(0.0),
+        denoised: denoise_s.is_some(),
+        denoise_follows: false,
+    };
+    (frame, still)
 }
 
 /// A `width` x `height` window rendered at `scale` window pixels per

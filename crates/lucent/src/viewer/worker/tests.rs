@@ -88,6 +88,26 @@ fn still_camera_refines_to_the_cap_then_idles() {
 }
 
 #[test]
+fn a_one_pass_preview_is_rendered_whole_as_lucent_render_makes_it_then_idles() {
+    let mut r = request(1, false, 1);
+    r.settings.integrator = lucent_render::Integrator::Path;
+    r.settings.lighting_scale = 4;
+    let worker = Worker::spawn(scene(), r).unwrap();
+    let f = worker.latest_frame(WAIT).expect("the preview");
+    assert!(f.refined && f.samples == 1 && (f.width, f.height) == (64, 36));
+    let mut s = scene();
+    s.rig = r.rig;
+    let want = lucent_render::render(&s, &r.settings, &|_| {}).film;
+    let mut pixels = vec![0; 64 * 36];
+    upscale(&want, &mut pixels, 64, r.settings.tonemap);
+    assert!(f.pixels == pixels, "the same picture as render()");
+    assert!(
+        worker.latest_frame(Duration::from_millis(200)).is_none(),
+        "idle after the one pass"
+    );
+}
+
+#[test]
 fn still_scale_refines_a_smaller_film_upscaled_to_the_window() {
     let mut r = request(1, false, 2);
     r.still_scale = 2.0;
