@@ -461,6 +461,9 @@ impl Fragment {
 
 struct Builder {
     params: BuildParams,
+    /// `log2(prim_block)` when `prim_block` is a power of two (then a block
+    /// count is a shift, where a division would dominate the bin sweep).
+    block_shift: Option<u32>,
 }
 
 /// A binned split: the axis, the first bin of the right side, its SAH cost
@@ -505,8 +508,13 @@ fn build_prims(mut prims: Vec<Box4>, mut ids: Vec<u32>, params: &BuildParams) ->
         return Bvh::default();
     }
     let (bounds, centroids) = measure(&prims);
+    let params = params.clamped();
     let builder = Builder {
-        params: params.clamped(),
+        params,
+        block_shift: params
+            .prim_block
+            .is_power_of_two()
+            .then(|| params.prim_block.trailing_zeros()),
     };
     let root = builder.subtree(Task {
         prims: &mut prims,
@@ -617,7 +625,11 @@ impl Builder {
     /// SAH weight of `n` primitives: the number of block tests.
     #[inline]
     fn blocks(&self, n: usize) -> f32 {
-        n.div_ceil(self.params.prim_block as usize) as f32
+        let block = self.params.prim_block as usize;
+        match self.block_shift {
+            Some(shift) => ((n + block - 1) >> shift) as f32,
+            None => n.div_ceil(block) as f32,
+        }
     }
 
     /// Area x blocks of `n` primitives in `bounds`: 0 for none (whose box

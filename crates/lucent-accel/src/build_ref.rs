@@ -324,7 +324,7 @@ mod tests {
             n_bins: 32,
             traversal_cost: 0.5,
             exact_below: 20,
-            prim_block: 2,
+            prim_block: 3,
         });
         params
     }
