@@ -329,11 +329,28 @@ mod tests {
         params
     }
 
+    /// The tuned build equals the reference for every parameter set, on
+    /// the test's thread pool and (with the feature) on 1 and 3 threads.
     fn assert_same_tree(boxes: &[Aabb], what: &str) {
+        #[cfg(feature = "parallel")]
+        let pools: Vec<rayon::ThreadPool> = [1, 3]
+            .map(|n| rayon::ThreadPoolBuilder::new().num_threads(n).build())
+            .into_iter()
+            .map(|pool| pool.unwrap_or_else(|e| panic!("thread pool: {e}")))
+            .collect();
         for params in all_params() {
             let reference = build(boxes, &params);
             let tuned = Bvh::build(boxes, &params);
             assert!(bits(&reference) == bits(&tuned), "{what}, {params:?}: another tree");
+            #[cfg(feature = "parallel")]
+            for pool in &pools {
+                let tuned = pool.install(|| Bvh::build(boxes, &params));
+                let threads = pool.current_num_threads();
+                assert!(
+                    bits(&reference) == bits(&tuned),
+                    "{what}, {params:?}, {threads} threads"
+                );
+            }
         }
     }
 
