@@ -4,14 +4,27 @@
 //! the bins to price every split by the SAH, and splits where it is cheapest,
 //! or makes a leaf when that is cheaper. At [`BuildQuality::High`] small nodes
 //! are priced exactly instead (a sorted sweep over every primitive boundary).
-//! Subtrees of large nodes are built in parallel with rayon (feature
-//! `parallel`, on by default); the tree does not depend on the number of
-//! threads. Two fallbacks keep the tree sound on hostile input: primitives
-//! whose centroids coincide are split by index, and a node that would grow
-//! the tree deeper than traversal stacks allow is split at the median, which
-//! halves it, so the depth stays below [`MAX_DEPTH`].
+//!
+//! Each node reads its primitives twice: once to bin them and once to
+//! partition them. The bins give both children's boxes, and the partition
+//! gathers both children's centroid boxes as it goes, so a child starts
+//! binning at once. Primitives are 32-byte boxes in four-lane registers
+//! (their ids ride along in a separate array), so a centroid, its three bin
+//! numbers and a bin update are a handful of vector instructions.
+//!
+//! With the `parallel` feature (on by default) the subtrees of large nodes
+//! are built on rayon's thread pool, large nodes bin their primitives in
+//! fixed chunks in parallel, and a mesh's triangle boxes are computed in
+//! parallel. Nothing depends on the number of threads: the chunks are fixed,
+//! their bins are merged in order, and each task writes its subtree into its
+//! own run of nodes, joined in a fixed order at the end.
+//!
+//! Two fallbacks keep the tree sound on hostile input: primitives whose
+//! centroids coincide are split by index, and a node that would grow the tree
+//! deeper than traversal stacks allow is split at the median, which halves
+//! it, so the depth stays below [`MAX_DEPTH`].
 
-use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH};
+use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH, TriMesh};
 use lucent_geom::{Vec3, Vec3A};
 
 /// The speed-for-quality trade of a build.
@@ -48,11 +61,9 @@ pub struct BuildParams {
     /// Nodes with at most this many primitives are split by an exact SAH
     /// sweep (sorting centroids) instead of binning; 0 never.
     pub exact_below: u32,
-    /// Primitives are tested this many at a time (4 for [`MeshBvh`]'s
-    /// four-lane triangle test), so the SAH prices a leaf of `n` as
+    /// Primitives are tested this many at a time (as a leaf's triangle
+    /// packs hold them), so the SAH prices a leaf of `n` as
     /// `ceil(n / prim_block)` tests; 1 prices each primitive.
-    ///
-    /// [`MeshBvh`]: crate::MeshBvh
     pub prim_block: u32,
 }
 
@@ -84,26 +95,42 @@ impl BuildParams {
             prim_block: 4,
         }
     }
+
+    /// The settings clamped to their documented ranges.
+    pub(crate) fn clamped(&self) -> Self {
+        Self {
+            max_leaf_size: self.max_leaf_size.clamp(1, 16),
+            n_bins: self.n_bins.clamp(2, MAX_BINS),
+            traversal_cost: self.traversal_cost.max(0.0),
+            exact_below: self.exact_below,
+            prim_block: self.prim_block.clamp(1, 16),
+        }
+    }
 }
 
 /// Nodes with at least this many primitives build their two subtrees in
 /// parallel (below it the task overhead outweighs the work).
-#[cfg(feature = "parallel")]
 const PARALLEL_MIN: usize = 4096;
 
+/// Primitives per chunk where work is split into chunks: the binning of
+/// nodes of at least two chunks, and the triangle boxes. Fixed, so that the
+/// result does not depend on the number of threads.
+const CHUNK: usize = 8192;
+
+/// Runs `a` and `b`, in parallel with the feature.
 #[cfg(feature = "parallel")]
-fn join<A, B, RA, RB>(parallel: bool, a: A, b: B) -> (RA, RB)
+fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA + Send,
     B: FnOnce() -> RB + Send,
     RA: Send,
     RB: Send,
 {
-    if parallel { rayon::join(a, b) } else { (a(), b()) }
+    rayon::join(a, b)
 }
 
 #[cfg(not(feature = "parallel"))]
-fn join<A, B, RA, RB>(_parallel: bool, a: A, b: B) -> (RA, RB)
+fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA,
     B: FnOnce() -> RB,
@@ -111,88 +138,183 @@ where
     (a(), b())
 }
 
-/// Most bins per axis (the bins live on the stack, cleared per node).
-const MAX_BINS: usize = 32;
-
-/// A bin's box in four-lane registers (the union is two vector
-/// instructions; the min and max are exact, so the box equals the scalar
-/// union bit for bit).
-#[derive(Clone, Copy)]
-struct Bin {
-    min: Vec3A,
-    max: Vec3A,
-    count: u32,
+/// `f` of each `CHUNK` of `items`, in order (in parallel with the feature).
+#[cfg(feature = "parallel")]
+fn map_chunks<T: Sync, R: Send>(items: &[T], f: impl Fn(&[T]) -> R + Sync + Send) -> Vec<R> {
+    use rayon::prelude::*;
+    items.par_chunks(CHUNK).map(f).collect()
 }
 
-const EMPTY_BIN: Bin = Bin {
-    min: Vec3A::INFINITY,
-    max: Vec3A::NEG_INFINITY,
-    count: 0,
-};
+#[cfg(not(feature = "parallel"))]
+fn map_chunks<T, R>(items: &[T], f: impl Fn(&[T]) -> R) -> Vec<R> {
+    items.chunks(CHUNK).map(f).collect()
+}
 
-impl Bin {
+/// `f(i)` for `i` in `0..n`, in order (in parallel with the feature).
+#[cfg(feature = "parallel")]
+fn map_indices<R: Send>(n: usize, f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
+    use rayon::prelude::*;
+    let mut out = Vec::new();
+    (0..n)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(f)
+        .collect_into_vec(&mut out);
+    out
+}
+
+#[cfg(not(feature = "parallel"))]
+fn map_indices<R>(n: usize, f: impl Fn(usize) -> R) -> Vec<R> {
+    (0..n).map(f).collect()
+}
+
+/// Most bins per axis.
+const MAX_BINS: usize = 32;
+
+/// A box in four-lane registers (the fourth lane is unused). Its unions
+/// are exact, so they equal [`Aabb`]'s, and [`Box4::half_area`] does
+/// [`Aabb::half_area`]'s arithmetic in the same order: the SAH prices are
+/// the same bit for bit.
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+struct Box4 {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Box4 {
+    const EMPTY: Box4 = Box4 {
+        min: Vec3A::INFINITY,
+        max: Vec3A::NEG_INFINITY,
+    };
+
     #[inline(always)]
-    fn add(&mut self, min: Vec3A, max: Vec3A) {
-        self.min = self.min.min(min);
-        self.max = self.max.max(max);
-        self.count += 1;
+    fn from_aabb(b: &Aabb) -> Self {
+        Self {
+            min: b.min.into(),
+            max: b.max.into(),
+        }
     }
 
     #[inline(always)]
-    fn merge(&mut self, other: &Bin) {
-        self.min = self.min.min(other.min);
-        self.max = self.max.max(other.max);
-        self.count += other.count;
-    }
-
-    #[inline(always)]
-    fn half_area(&self) -> f32 {
+    fn to_aabb(self) -> Aabb {
         Aabb {
             min: self.min.into(),
             max: self.max.into(),
         }
-        .half_area()
+    }
+
+    /// The box around a triangle (as [`Aabb::from_points`] gives it).
+    #[inline(always)]
+    fn of_triangle(tri: [Vec3; 3]) -> Self {
+        let mut b = Box4::EMPTY;
+        for p in tri {
+            b.grow(p.into());
+        }
+        b
+    }
+
+    #[inline(always)]
+    fn union(self, other: Box4) -> Self {
+        Self {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
+    #[inline(always)]
+    fn grow(&mut self, p: Vec3A) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// The centroid, `0.5 * (min + max)` (as [`Aabb::center`]).
+    #[inline(always)]
+    fn centroid(&self) -> Vec3A {
+        0.5 * (self.min + self.max)
+    }
+
+    /// Whether a primitive with this box can be hit at all.
+    #[inline(always)]
+    fn is_valid(&self) -> bool {
+        self.min.cmple(self.max).all() && self.min.is_finite() && self.max.is_finite()
+    }
+
+    /// Half the surface area; 0 when empty.
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        if !self.min.cmple(self.max).all() {
+            return 0.0;
+        }
+        let e = self.max - self.min;
+        e.x * e.y + e.y * e.z + e.z * e.x
     }
 }
 
-/// A primitive as the builder moves it around: its box and its index, kept
-/// together so that partitioning streams through memory.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(16))]
-struct PrimRef {
-    bounds: Aabb,
-    id: u32,
+/// Boxes of the centroids' bins along each axis, and their primitive counts.
+#[derive(Clone)]
+struct Bins {
+    boxes: [[Box4; MAX_BINS]; 3],
+    counts: [[u32; MAX_BINS]; 3],
 }
 
-impl PrimRef {
-    #[inline]
-    fn centroid(&self) -> Vec3 {
-        self.bounds.center()
+impl Bins {
+    /// Empty bins.
+    fn new() -> Self {
+        Self {
+            boxes: [[Box4::EMPTY; MAX_BINS]; 3],
+            counts: [[0; MAX_BINS]; 3],
+        }
     }
-}
 
-/// The tree as the recursive build produces it, flattened afterwards.
-enum TmpNode {
-    Leaf { bounds: Aabb, first: usize, count: usize },
-    Inner { bounds: Aabb, kids: Box<[TmpNode; 2]> },
-}
+    /// Empties the first `n` bins of each axis.
+    #[inline(never)]
+    fn clear(&mut self, n: usize) {
+        for axis in 0..3 {
+            self.boxes[axis][..n].fill(Box4::EMPTY);
+            self.counts[axis][..n].fill(0);
+        }
+    }
 
-struct Builder {
-    params: BuildParams,
+    /// Adds every primitive of `prims` (after [`Bins::clear`]).
+    #[inline(never)]
+    fn add_all(&mut self, prims: &[Box4], binner: &Binner) {
+        for p in prims {
+            let bin = binner.bins(p.centroid());
+            for (axis, &b) in bin.iter().enumerate() {
+                let slot = &mut self.boxes[axis][b];
+                *slot = slot.union(*p);
+                self.counts[axis][b] += 1;
+            }
+        }
+    }
+
+    /// Adds the first `n` bins of `other`.
+    fn merge(&mut self, other: &Bins, n: usize) {
+        for axis in 0..3 {
+            for b in 0..n {
+                self.boxes[axis][b] = self.boxes[axis][b].union(other.boxes[axis][b]);
+                self.counts[axis][b] += other.counts[axis][b];
+            }
+        }
+    }
 }
 
 /// Maps centroids to bins along each axis of a node's centroid box.
 struct Binner {
-    min: Vec3,
+    min: Vec3A,
     /// Bins per unit length, per axis; 0 where the centroids do not spread.
-    scale: [f32; 3],
+    scale: Vec3A,
+    /// The last bin's number, in every lane.
+    last: Vec3A,
     n_bins: usize,
 }
 
 impl Binner {
-    fn new(cb: &Aabb, n_bins: usize) -> Self {
+    fn new(cb: &Box4, n_bins: usize) -> Self {
+        let (lo, hi) = (cb.min.to_array(), cb.max.to_array());
         let scale = [0, 1, 2].map(|axis| {
-            let extent = cb.max[axis] - cb.min[axis];
+            let extent = hi[axis] - lo[axis];
             if extent > 0.0 && extent.is_finite() {
                 n_bins as f32 / extent
             } else {
@@ -201,52 +323,213 @@ impl Binner {
         });
         Self {
             min: cb.min,
-            scale,
+            scale: Vec3A::from_array(scale),
+            last: Vec3A::splat((n_bins - 1) as f32),
             n_bins,
         }
     }
 
-    /// The bin of centroid `c` along `axis`; always in range (clamped to the
-    /// last bin before the conversion, which maps NaN and negatives to 0).
-    #[inline]
-    fn bin(&self, c: Vec3, axis: usize) -> usize {
-        let x = (c[axis] - self.min[axis]) * self.scale[axis];
-        x.min((self.n_bins - 1) as f32) as i32 as usize
+    /// Whether the centroids spread along each axis.
+    fn spread(&self) -> [bool; 3] {
+        self.scale.to_array().map(|k| k > 0.0)
     }
+
+    /// Where centroid `c` falls along each axis, in bins: `(c - min) *
+    /// scale`, clamped to the last bin (a NaN goes there too). Never
+    /// negative, as centroids are never below the centroid box.
+    #[inline(always)]
+    fn position(&self, c: Vec3A) -> Vec3A {
+        ((c - self.min) * self.scale).min(self.last)
+    }
+
+    /// The bins of centroid `c` along the three axes: its
+    /// [`Binner::position`], truncated. Adding 2^23 rounds the position to
+    /// the nearest integer, which then sits in the sum's low mantissa bits;
+    /// where that rounded up, one less is the truncation. (This is four
+    /// vector instructions where a float-to-integer cast of each lane is a
+    /// dozen scalar ones with range checks.)
+    #[inline(always)]
+    fn bins(&self, c: Vec3A) -> [usize; 3] {
+        const ROUND: Vec3A = Vec3A::splat(8_388_608.0);
+        let x = self.position(c);
+        let t = x + ROUND;
+        let t = Vec3A::select((t - ROUND).cmpgt(x), t - Vec3A::ONE, t);
+        t.to_array().map(|v| v.to_bits() as usize & (MAX_BINS - 1))
+    }
+}
+
+/// A node's primitives and boxes, as the builder hands them down.
+struct Task<'a> {
+    prims: &'a mut [Box4],
+    /// The primitives' ids, reordered with them.
+    ids: &'a mut [u32],
+    /// Where `prims` starts in the final primitive order.
+    offset: usize,
+    depth: usize,
+    bounds: Box4,
+    /// The box around the primitives' centroids.
+    centroids: Box4,
+}
+
+impl<'a> Task<'a> {
+    /// The two halves at `mid`, with their boxes.
+    fn split(self, mid: usize, bounds: [Box4; 2], centroids: [Box4; 2]) -> [Task<'a>; 2] {
+        let (lp, rp) = self.prims.split_at_mut(mid);
+        let (li, ri) = self.ids.split_at_mut(mid);
+        let depth = self.depth + 1;
+        [
+            Task {
+                prims: lp,
+                ids: li,
+                offset: self.offset,
+                depth,
+                bounds: bounds[0],
+                centroids: centroids[0],
+            },
+            Task {
+                prims: rp,
+                ids: ri,
+                offset: self.offset + mid,
+                depth,
+                bounds: bounds[1],
+                centroids: centroids[1],
+            },
+        ]
+    }
+
+    /// The two halves at `mid`, their boxes computed from the primitives
+    /// (after the fallback splits, which know neither).
+    fn split_and_measure(self, mid: usize) -> [Task<'a>; 2] {
+        let left = measure(&self.prims[..mid]);
+        let right = measure(&self.prims[mid..]);
+        self.split(mid, [left.0, right.0], [left.1, right.1])
+    }
+}
+
+/// The box around `prims` and the box around their centroids.
+fn measure(prims: &[Box4]) -> (Box4, Box4) {
+    let parts = map_chunks(prims, |chunk| {
+        chunk.iter().fold((Box4::EMPTY, Box4::EMPTY), |(b, mut c), p| {
+            c.grow(p.centroid());
+            (b.union(*p), c)
+        })
+    });
+    parts.into_iter().fold((Box4::EMPTY, Box4::EMPTY), |(b, c), (pb, pc)| {
+        (b.union(pb), c.union(pc))
+    })
+}
+
+/// Nodes built by one task, its subtree's root first; each node's children
+/// side by side. `links` are the slots whose subtrees other tasks built.
+struct Fragment {
+    nodes: Vec<BvhNode>,
+    links: Vec<(usize, Fragment)>,
+}
+
+impl Fragment {
+    fn new(capacity: usize) -> Self {
+        let mut nodes = Vec::with_capacity(capacity);
+        nodes.push(leaf(Aabb::EMPTY, 0, 0));
+        Self {
+            nodes,
+            links: Vec::new(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.nodes.len() + self.links.iter().map(|(_, f)| f.len() - 1).sum::<usize>()
+    }
+
+    /// Appends this fragment to `out`, its root at `slot`, and then its
+    /// links' fragments in order.
+    fn append_to(self, out: &mut Vec<BvhNode>, slot: usize) {
+        // Node `k >= 1` of this fragment lands at `base + k`.
+        let base = out.len() - 1;
+        let place = |mut n: BvhNode| {
+            if n.count == 0 {
+                n.first += base as u32;
+            }
+            n
+        };
+        out[slot] = place(self.nodes[0]);
+        out.extend(self.nodes[1..].iter().map(|&n| place(n)));
+        for (k, child) in self.links {
+            child.append_to(out, base + k);
+        }
+    }
+}
+
+struct Builder {
+    params: BuildParams,
+    /// `log2(prim_block)` when `prim_block` is a power of two (then a block
+    /// count is a shift, where a division would dominate the bin sweep).
+    block_shift: Option<u32>,
+}
+
+/// A binned split: the axis, the first bin of the right side, its SAH cost
+/// (relative to one block test) and the two sides' boxes.
+struct Split {
+    axis: usize,
+    bin: usize,
+    cost: f32,
+    bounds: [Box4; 2],
 }
 
 impl Bvh {
     /// Builds a BVH over primitive boxes; primitive `i` is `boxes[i]`.
     /// Boxes that are empty or not finite are left out.
     pub fn build(boxes: &[Aabb], params: &BuildParams) -> Bvh {
-        let params = BuildParams {
-            max_leaf_size: params.max_leaf_size.clamp(1, 16),
-            n_bins: params.n_bins.clamp(2, MAX_BINS),
-            traversal_cost: params.traversal_cost.max(0.0),
-            exact_below: params.exact_below,
-            prim_block: params.prim_block.clamp(1, 16),
-        };
-        let mut prims: Vec<PrimRef> = boxes
+        let (prims, ids) = boxes
             .iter()
             .enumerate()
-            .filter(|(_, b)| !b.is_empty() && b.min.is_finite() && b.max.is_finite())
-            .map(|(i, b)| PrimRef {
-                bounds: *b,
-                id: i as u32,
-            })
-            .collect();
-        if prims.is_empty() {
-            return Bvh::default();
+            .map(|(i, b)| (Box4::from_aabb(b), i as u32))
+            .filter(|(b, _)| b.is_valid())
+            .unzip();
+        build_prims(prims, ids, params)
+    }
+
+    /// Builds a BVH over a mesh's triangles (as [`Bvh::build`] over their
+    /// boxes, without the intermediate array).
+    pub(crate) fn build_triangles(mesh: &TriMesh, params: &BuildParams) -> Bvh {
+        let prims = map_indices(mesh.n_triangles(), |t| Box4::of_triangle(mesh.triangle(t)));
+        if prims.iter().all(Box4::is_valid) {
+            let ids = (0..prims.len() as u32).collect();
+            build_prims(prims, ids, params)
+        } else {
+            let (prims, ids) = prims.into_iter().zip(0..).filter(|(b, _)| b.is_valid()).unzip();
+            build_prims(prims, ids, params)
         }
-        let builder = Builder { params };
-        let root = builder.build_node(&mut prims, 0, 0);
-        let mut nodes = Vec::with_capacity(2 * prims.len() / params.max_leaf_size as usize + 1);
-        nodes.push(leaf(Aabb::EMPTY, 0, 0));
-        flatten(&root, &mut nodes, 0);
-        Bvh {
-            nodes,
-            prim_indices: prims.iter().map(|p| p.id).collect(),
-        }
+    }
+}
+
+/// Builds the tree over valid boxes `prims` with ids `ids`.
+fn build_prims(mut prims: Vec<Box4>, mut ids: Vec<u32>, params: &BuildParams) -> Bvh {
+    if prims.is_empty() {
+        return Bvh::default();
+    }
+    let (bounds, centroids) = measure(&prims);
+    let params = params.clamped();
+    let builder = Builder {
+        params,
+        block_shift: params
+            .prim_block
+            .is_power_of_two()
+            .then(|| params.prim_block.trailing_zeros()),
+    };
+    let root = builder.subtree(Task {
+        prims: &mut prims,
+        ids: &mut ids,
+        offset: 0,
+        depth: 0,
+        bounds,
+        centroids,
+    });
+    let mut nodes = Vec::with_capacity(root.len());
+    nodes.push(leaf(Aabb::EMPTY, 0, 0));
+    root.append_to(&mut nodes, 0);
+    Bvh {
+        nodes,
+        prim_indices: ids,
     }
 }
 
@@ -259,158 +542,194 @@ fn leaf(bounds: Aabb, first: usize, count: usize) -> BvhNode {
     }
 }
 
-/// Writes `node` at `idx` and its subtree after it, children side by side.
-fn flatten(node: &TmpNode, nodes: &mut Vec<BvhNode>, idx: usize) {
-    match node {
-        TmpNode::Leaf { bounds, first, count } => nodes[idx] = leaf(*bounds, *first, *count),
-        TmpNode::Inner { bounds, kids } => {
-            let first = nodes.len();
-            nodes.push(leaf(Aabb::EMPTY, 0, 0));
-            nodes.push(leaf(Aabb::EMPTY, 0, 0));
-            nodes[idx] = BvhNode {
-                min: bounds.min,
-                first: first as u32,
-                max: bounds.max,
-                count: 0,
-            };
-            flatten(&kids[0], nodes, first);
-            flatten(&kids[1], nodes, first + 1);
+impl Builder {
+    /// Builds `task`'s subtree into a fragment of its own.
+    fn subtree(&self, task: Task) -> Fragment {
+        // A parallel node keeps only itself and its children's slots.
+        let n = task.prims.len();
+        let mut fragment = Fragment::new(if n >= PARALLEL_MIN { 3 } else { n / 2 + 1 });
+        let mut bins = Bins::new();
+        self.build_node(task, &mut fragment, 0, &mut bins);
+        fragment
+    }
+
+    /// Builds the subtree over `task` with its root at `slot` of `out`;
+    /// reorders the task's primitives into leaf order. `bins` is scratch.
+    fn build_node(&self, task: Task, out: &mut Fragment, slot: usize, bins: &mut Bins) {
+        let (count, offset, bounds) = (task.prims.len(), task.offset, task.bounds);
+        let Some([left, right]) = self.choose(task, bins) else {
+            out.nodes[slot] = leaf(bounds.to_aabb(), offset, count);
+            return;
+        };
+        let first = out.nodes.len();
+        out.nodes.push(leaf(Aabb::EMPTY, 0, 0));
+        out.nodes.push(leaf(Aabb::EMPTY, 0, 0));
+        out.nodes[slot] = BvhNode {
+            min: bounds.min.into(),
+            first: first as u32,
+            max: bounds.max.into(),
+            count: 0,
+        };
+        if cfg!(feature = "parallel") && count >= PARALLEL_MIN {
+            let (a, b) = join(|| self.subtree(left), || self.subtree(right));
+            out.links.push((first, a));
+            out.links.push((first + 1, b));
+        } else {
+            self.build_node(left, out, first, bins);
+            self.build_node(right, out, first + 1, bins);
         }
     }
-}
 
-impl Builder {
-    /// Builds the subtree over `prims`, which start at `offset` in the final
-    /// primitive order; reorders `prims` into leaf order.
-    fn build_node(&self, prims: &mut [PrimRef], offset: usize, depth: usize) -> TmpNode {
-        let (bounds, centroid_bounds) = prims.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), p| {
-            (b.union(p.bounds), c.grown(p.centroid()))
-        });
-        let count = prims.len();
-        let as_leaf = TmpNode::Leaf {
-            bounds,
-            first: offset,
-            count,
-        };
+    /// The two children of `task`'s node, or `None` to make it a leaf
+    /// (which may have reordered its primitives).
+    fn choose<'a>(&self, mut task: Task<'a>, bins: &mut Bins) -> Option<[Task<'a>; 2]> {
+        let count = task.prims.len();
         if count <= 1 {
-            return as_leaf;
+            return None;
         }
         let must_split = count > self.params.max_leaf_size as usize;
         // Levels a median-split subtree of `count` primitives needs.
         let levels_needed = usize::BITS as usize - (count - 1).leading_zeros() as usize;
-        let depth_budget = MAX_DEPTH.saturating_sub(2 + depth);
+        let depth_budget = MAX_DEPTH.saturating_sub(2 + task.depth);
         let leaf_cost = self.blocks(count);
-        let mid = if levels_needed + 1 >= depth_budget {
-            Some(split_median(prims, &centroid_bounds))
-        } else if count <= self.params.exact_below as usize {
-            match self.exact_split(prims, &bounds) {
+        let median = |mut task: Task<'a>| {
+            let mid = split_median(&mut task);
+            Some(task.split_and_measure(mid))
+        };
+        if levels_needed + 1 >= depth_budget {
+            return median(task);
+        }
+        if count <= self.params.exact_below as usize {
+            return match self.exact_split(&mut task) {
                 Some((_, cost)) if cost >= leaf_cost && !must_split => None,
-                Some((mid, _)) => Some(mid),
-                None if must_split => Some(split_median(prims, &centroid_bounds)),
+                Some((mid, _)) => Some(task.split_and_measure(mid)),
+                None if must_split => median(task),
                 None => None,
-            }
-        } else {
-            let binner = Binner::new(&centroid_bounds, self.params.n_bins.min(count));
-            match self.find_sah_split(prims, &bounds, &binner) {
-                Some((_, _, cost)) if cost >= leaf_cost && !must_split => None,
-                Some((axis, bin, _)) => Some(partition(prims, axis, bin, &binner, &centroid_bounds)),
-                // All centroids coincide: SAH cannot separate them.
-                None if must_split => Some(split_median(prims, &centroid_bounds)),
-                None => None,
-            }
-        };
-        let Some(mid) = mid else {
-            return as_leaf;
-        };
-        let (left, right) = prims.split_at_mut(mid);
-        #[cfg(feature = "parallel")]
-        let parallel = count >= PARALLEL_MIN;
-        #[cfg(not(feature = "parallel"))]
-        let parallel = false;
-        let (a, b) = join(
-            parallel,
-            || self.build_node(left, offset, depth + 1),
-            || self.build_node(right, offset + mid, depth + 1),
-        );
-        TmpNode::Inner {
-            bounds,
-            kids: Box::new([a, b]),
+            };
+        }
+        let binner = Binner::new(&task.centroids, self.params.n_bins.min(count));
+        match self.find_sah_split(&task, &binner, bins) {
+            Some(s) if s.cost >= leaf_cost && !must_split => None,
+            Some(s) => match partition(&mut task, s.axis, s.bin, &binner) {
+                Some((mid, centroids)) => Some(task.split(mid, s.bounds, centroids)),
+                // Every centroid fell into one side (only possible with
+                // extreme values): fall back to halving.
+                None => median(task),
+            },
+            // All centroids coincide: SAH cannot separate them.
+            None if must_split => median(task),
+            None => None,
         }
     }
 
     /// SAH weight of `n` primitives: the number of block tests.
     #[inline]
     fn blocks(&self, n: usize) -> f32 {
-        n.div_ceil(self.params.prim_block as usize) as f32
+        let block = self.params.prim_block as usize;
+        match self.block_shift {
+            Some(shift) => ((n + block - 1) >> shift) as f32,
+            None => n.div_ceil(block) as f32,
+        }
     }
 
-    /// Cheapest SAH split: (axis, first bin of the right side, cost relative
-    /// to one block test), or `None` when the centroids do not spread. Bins
-    /// all three axes in one pass over the primitives.
-    fn find_sah_split(&self, prims: &[PrimRef], bounds: &Aabb, binner: &Binner) -> Option<(usize, usize, f32)> {
+    /// Area x blocks of `n` primitives in `bounds`: 0 for none (whose box
+    /// is empty), as [`Box4::half_area`] gives an empty box.
+    #[inline(always)]
+    fn price(&self, bounds: &Box4, n: usize) -> f32 {
+        if n == 0 {
+            return 0.0;
+        }
+        let e = bounds.max - bounds.min;
+        (e.x * e.y + e.y * e.z + e.z * e.x) * self.blocks(n)
+    }
+
+    /// Cheapest SAH split, or `None` when the centroids do not spread. Bins
+    /// all three axes in one pass over the primitives (in parallel chunks
+    /// for large nodes).
+    #[inline(never)]
+    fn find_sah_split(&self, task: &Task, binner: &Binner, bins: &mut Bins) -> Option<Split> {
         let n_bins = binner.n_bins;
-        let inv_area = 1.0 / bounds.half_area().max(f32::MIN_POSITIVE);
-        let spread = binner.scale.map(|k| k > 0.0);
+        let spread = binner.spread();
         if spread == [false; 3] {
             return None;
         }
-        // All three axes, spread or not (an axis that does not spread puts
-        // everything in bin 0 and is not swept), so the loop unrolls.
-        let mut bins = [[EMPTY_BIN; MAX_BINS]; 3];
-        for p in prims {
-            let c = p.centroid();
-            let (min, max) = (Vec3A::from(p.bounds.min), Vec3A::from(p.bounds.max));
-            for (axis, bins) in bins.iter_mut().enumerate() {
-                bins[binner.bin(c, axis)].add(min, max);
+        let inv_area = 1.0 / task.bounds.half_area().max(f32::MIN_POSITIVE);
+        bins.clear(n_bins);
+        if cfg!(feature = "parallel") && task.prims.len() >= 2 * CHUNK {
+            let parts = map_chunks(task.prims, |chunk| {
+                let mut part = Bins::new();
+                part.add_all(chunk, binner);
+                part
+            });
+            for part in &parts {
+                bins.merge(part, n_bins);
             }
+        } else {
+            bins.add_all(task.prims, binner);
         }
         let mut best: Option<(usize, usize, f32)> = None;
         for axis in (0..3).filter(|&a| spread[a]) {
-            let bins = &bins[axis];
+            let (boxes, counts) = (&bins.boxes[axis], &bins.counts[axis]);
             // Right-to-left sweep: area x blocks of the right side per split.
             let mut right_cost = [0.0f32; MAX_BINS];
-            let mut acc = EMPTY_BIN;
+            let (mut acc, mut n) = (Box4::EMPTY, 0);
             for i in (1..n_bins).rev() {
-                acc.merge(&bins[i]);
-                right_cost[i] = acc.half_area() * self.blocks(acc.count as usize);
+                acc = acc.union(boxes[i]);
+                n += counts[i] as usize;
+                right_cost[i] = self.price(&acc, n);
             }
-            let mut acc = EMPTY_BIN;
+            let (mut acc, mut n) = (Box4::EMPTY, 0);
             for i in 1..n_bins {
-                acc.merge(&bins[i - 1]);
-                let left_cost = acc.half_area() * self.blocks(acc.count as usize);
+                acc = acc.union(boxes[i - 1]);
+                n += counts[i - 1] as usize;
+                let left_cost = self.price(&acc, n);
                 let cost = self.params.traversal_cost + (left_cost + right_cost[i]) * inv_area;
                 if best.is_none_or(|(_, _, c)| cost < c) {
                     best = Some((axis, i, cost));
                 }
             }
         }
-        best
+        let (axis, bin, cost) = best?;
+        let side = |bins: &[Box4]| bins.iter().fold(Box4::EMPTY, |a, &b| a.union(b));
+        let boxes = &bins.boxes[axis];
+        Some(Split {
+            axis,
+            bin,
+            cost,
+            bounds: [side(&boxes[..bin]), side(&boxes[bin..n_bins])],
+        })
     }
 
     /// Exact SAH split: sorts the centroids along each axis and prices a cut
-    /// between every pair of neighbours. Leaves `prims` ordered along the
-    /// best axis and returns (first index of the right side, cost), or
-    /// `None` when no cut separates distinct centroids.
-    fn exact_split(&self, prims: &mut [PrimRef], bounds: &Aabb) -> Option<(usize, f32)> {
-        let n = prims.len();
-        let inv_area = 1.0 / bounds.half_area().max(f32::MIN_POSITIVE);
+    /// between every pair of neighbours. Leaves the primitives ordered along
+    /// the best axis (the last one when none) and returns (first index of
+    /// the right side, cost), or `None` when no cut separates distinct
+    /// centroids.
+    fn exact_split(&self, task: &mut Task) -> Option<(usize, f32)> {
+        let n = task.prims.len();
+        let inv_area = 1.0 / task.bounds.half_area().max(f32::MIN_POSITIVE);
+        let mut items = zipped(task);
         let mut best: Option<(usize, usize, f32)> = None;
         let mut right_cost = vec![0.0f32; n];
-        let order = |prims: &mut [PrimRef], axis: usize| {
-            prims.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]).then(a.id.cmp(&b.id)));
+        let order = |items: &mut [(Box4, u32)], axis: usize| {
+            items.sort_by(|a, b| {
+                a.0.centroid()[axis]
+                    .total_cmp(&b.0.centroid()[axis])
+                    .then(a.1.cmp(&b.1))
+            });
         };
         for axis in 0..3 {
-            order(prims, axis);
-            let mut acc = Aabb::EMPTY;
+            order(&mut items, axis);
+            let mut acc = Box4::EMPTY;
             for i in (1..n).rev() {
-                acc = acc.union(prims[i].bounds);
+                acc = acc.union(items[i].0);
                 right_cost[i] = acc.half_area() * self.blocks(n - i);
             }
-            let mut acc = Aabb::EMPTY;
+            let mut acc = Box4::EMPTY;
             for i in 1..n {
-                acc = acc.union(prims[i - 1].bounds);
+                acc = acc.union(items[i - 1].0);
                 // Only cut between distinct centroids, so both sides differ.
-                if prims[i - 1].centroid()[axis] == prims[i].centroid()[axis] {
+                if items[i - 1].0.centroid()[axis] == items[i].0.centroid()[axis] {
                     continue;
                 }
                 let cost = self.params.traversal_cost + (acc.half_area() * self.blocks(i) + right_cost[i]) * inv_area;
@@ -419,47 +738,94 @@ impl Builder {
                 }
             }
         }
-        let (axis, mid, cost) = best?;
-        order(prims, axis);
-        Some((mid, cost))
+        if let Some((axis, _, _)) = best {
+            order(&mut items, axis);
+        }
+        unzip_into(&items, task);
+        best.map(|(_, mid, cost)| (mid, cost))
     }
 }
 
-/// Moves primitives whose centroid bin along `axis` is below `bin` to the
-/// front; returns where the rest starts.
-fn partition(prims: &mut [PrimRef], axis: usize, bin: usize, binner: &Binner, cb: &Aabb) -> usize {
+/// The task's primitives with their ids.
+fn zipped(task: &Task) -> Vec<(Box4, u32)> {
+    task.prims.iter().copied().zip(task.ids.iter().copied()).collect()
+}
+
+/// Writes `items` back as the task's primitives and ids.
+fn unzip_into(items: &[(Box4, u32)], task: &mut Task) {
+    for ((p, id), &(q, qid)) in task.prims.iter_mut().zip(task.ids.iter_mut()).zip(items) {
+        (*p, *id) = (q, qid);
+    }
+}
+
+/// Moves the primitives whose centroid bin along `axis` is below `bin` to
+/// the front; returns where the rest starts and both sides' centroid boxes,
+/// or `None` when one side is empty.
+fn partition(task: &mut Task, axis: usize, bin: usize, binner: &Binner) -> Option<(usize, [Box4; 2])> {
+    match axis {
+        0 => partition_on::<0>(task.prims, task.ids, bin, binner),
+        1 => partition_on::<1>(task.prims, task.ids, bin, binner),
+        _ => partition_on::<2>(task.prims, task.ids, bin, binner),
+    }
+}
+
+/// [`partition`] along `AXIS`.
+#[inline(never)]
+fn partition_on<const AXIS: usize>(
+    prims: &mut [Box4],
+    ids: &mut [u32],
+    bin: usize,
+    binner: &Binner,
+) -> Option<(usize, [Box4; 2])> {
     let end = prims.len();
-    let left = |p: &PrimRef| binner.bin(p.centroid(), axis) < bin;
+    // The bin is below `bin` exactly when the position is (for positions
+    // of at least 0, and `bin` a whole number).
+    let bound = bin as f32;
+    let is_left = |c: Vec3A| binner.position(c)[AXIS] < bound;
+    let (mut left, mut right) = (Box4::EMPTY, Box4::EMPTY);
     // Hoare-style: swap only pairs that are both on the wrong side.
     let (mut i, mut j) = (0, end);
     loop {
-        while i < j && left(&prims[i]) {
+        let mut ci = Vec3A::ZERO;
+        while i < j {
+            ci = prims[i].centroid();
+            if !is_left(ci) {
+                break;
+            }
+            left.grow(ci);
             i += 1;
         }
-        while i < j && !left(&prims[j - 1]) {
+        let mut cj = Vec3A::ZERO;
+        while i < j {
+            cj = prims[j - 1].centroid();
+            if is_left(cj) {
+                break;
+            }
+            right.grow(cj);
             j -= 1;
         }
         if i + 1 >= j {
             break;
         }
+        // `prims[i]` belongs right and `prims[j - 1]` left.
+        right.grow(ci);
+        left.grow(cj);
         prims.swap(i, j - 1);
+        ids.swap(i, j - 1);
         i += 1;
         j -= 1;
     }
-    if i == 0 || i == end {
-        // Every centroid fell into one side (only possible with extreme
-        // values): fall back to halving.
-        return split_median(prims, cb);
-    }
-    i
+    (i > 0 && i < end).then_some((i, [left, right]))
 }
 
 /// Splits at the middle index after ordering by centroid along the longest
 /// axis; always yields two non-empty halves.
-fn split_median(prims: &mut [PrimRef], cb: &Aabb) -> usize {
-    let axis = cb.largest_axis();
-    let mid = prims.len() / 2;
-    prims.select_nth_unstable_by(mid, |a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
+fn split_median(task: &mut Task) -> usize {
+    let axis = task.centroids.to_aabb().largest_axis();
+    let mid = task.prims.len() / 2;
+    let mut items = zipped(task);
+    items.select_nth_unstable_by(mid, |a, b| a.0.centroid()[axis].total_cmp(&b.0.centroid()[axis]));
+    unzip_into(&items, task);
     mid
 }
 

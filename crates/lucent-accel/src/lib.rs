@@ -3,7 +3,8 @@
 //! Three layers, each usable alone:
 //! - [`Bvh`]: a binary BVH built with the binned surface area heuristic over
 //!   a slice of [`Aabb`]s ([`BuildParams`], [`BuildQuality`]; large subtrees
-//!   are built in parallel with rayon under the default `parallel` feature).
+//!   and the binning of large nodes run in parallel with rayon under the
+//!   default `parallel` feature, the tree the same on any thread count).
 //!   It knows nothing about what the boxes hold: traversal hands primitive
 //!   indices to a closure (the obvhs model).
 //! - [`MeshBvh`]: one [`TriMesh`]: the binary tree collapsed into an 8-wide
@@ -41,6 +42,8 @@
 #![deny(unsafe_code)]
 
 mod build;
+#[cfg(test)]
+mod build_ref;
 mod bvh;
 #[cfg(target_arch = "x86_64")]
 mod kernel;

@@ -274,10 +274,7 @@ impl MeshBvh {
     /// (they could never be hit); triangle indices still refer to the mesh's
     /// order.
     pub fn build(mesh: &TriMesh, params: &BuildParams) -> Self {
-        let boxes: Vec<Aabb> = (0..mesh.n_triangles())
-            .map(|t| Aabb::from_points(mesh.triangle(t)))
-            .collect();
-        let bvh = Bvh::build(&boxes, params);
+        let bvh = Bvh::build_triangles(mesh, params);
         let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 6 + 1);
         // Leaves hold at most 16 primitives (two packs), well within what
         // a leaf entry can address.
