@@ -606,14 +606,6 @@ mod tests {
         params
     }
 
-    /// The tree's closest hit is the brute-force closest hit (same t, bit
-    /// for bit, and the same triangle unless two are hit at the same t), for
-    /// both triangle tests, every quality and a degenerate parameter set;
-    /// occlusion and the all-hits walk agree with it too.
-    /// The same mesh gives the same tree and packs, bit for bit, built on
-    /// one thread or on several (the parallel build must not depend on how
-    /// rayon splits the work).
-    #[cfg(feature = "parallel")]
     /// The counted queries answer as the plain ones do, count just the root
     /// node for rays that miss the mesh's box and at least one node and
     /// pack for a hit.
@@ -651,6 +643,10 @@ mod tests {
         assert_eq!(TraversalCounts::default().per_ray(), [0.0, 0.0]);
     }
 
+    /// The same mesh gives the same tree and packs, bit for bit, built on
+    /// one thread or on several (the parallel build must not depend on how
+    /// rayon splits the work).
+    #[cfg(feature = "parallel")]
     #[test]
     fn build_does_not_depend_on_the_thread_count() {
         // Well above the parallel threshold (subtrees of 4096 primitives),
@@ -689,6 +685,10 @@ mod tests {
         }
     }
 
+    /// The tree's closest hit is the brute-force closest hit (same t, bit
+    /// for bit, and the same triangle unless two are hit at the same t), for
+    /// both triangle tests, every quality and a degenerate parameter set;
+    /// occlusion and the all-hits walk agree with it too.
     #[test]
     fn closest_hit_equals_brute_force_on_random_soups() {
         for seed in 0..3 {
