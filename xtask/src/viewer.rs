@@ -315,7 +315,12 @@ fn bench_cycles(viewer: &Viewer, o: &Opts, w: u32, h: u32) -> Result<String, Str
                     && field(l, "height") == Some(f64::from(h))
             });
             let Some((t_denoised, _)) = first_denoised else {
-                return Err("no denoised full-resolution frame within a minute of the release".to_owned());
+                return Err(
+                    "no denoised full-resolution frame within a minute of the release (only the path \
+                            tracer's images are denoised: the built-in seed scene uses the Whitted model, so \
+                            pass a path-traced --scene such as res/scenes/cornell-mitsuba.toml)"
+                        .to_owned(),
+                );
             };
             denoised_ms.push(t_denoised.duration_since(released).as_secs_f64() * 1e3);
             let n = steady.iter().filter(|l| l.contains("\"denoised\":true")).count();
