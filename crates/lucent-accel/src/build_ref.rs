@@ -290,7 +290,7 @@ fn split_median(prims: &mut [PrimRef], cb: &Aabb) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{BuildQuality, TriMesh};
+    use crate::TriMesh;
     use lucent_geom::Pcg32;
 
     /// The nodes' boxes as bits (so that -0 and +0 differ), their links and
@@ -308,17 +308,10 @@ mod tests {
         (nodes, bvh.prim_indices())
     }
 
+    /// `mesh_bvh`'s parameter sets and one with a block size that is not a
+    /// power of two (the builder's division path).
     fn all_params() -> Vec<BuildParams> {
-        let mut params: Vec<BuildParams> = [BuildQuality::Fast, BuildQuality::Default, BuildQuality::High]
-            .map(BuildParams::for_quality)
-            .into();
-        params.push(BuildParams {
-            max_leaf_size: 1,
-            n_bins: 2,
-            traversal_cost: 0.0,
-            exact_below: 0,
-            prim_block: 1,
-        });
+        let mut params = crate::mesh_bvh::tests::all_params();
         params.push(BuildParams {
             max_leaf_size: 3,
             n_bins: 32,

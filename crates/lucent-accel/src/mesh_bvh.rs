@@ -554,7 +554,7 @@ impl MeshBvh {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::BuildQuality;
     use lucent_geom::{Pcg32, Vec3, intersect_triangle, shapes};
@@ -592,7 +592,9 @@ mod tests {
         Ray::new(o, d)
     }
 
-    fn all_params() -> Vec<BuildParams> {
+    /// Every build quality and a degenerate parameter set (one primitive
+    /// per leaf, two bins, free traversal); `build_ref`'s tests add theirs.
+    pub(crate) fn all_params() -> Vec<BuildParams> {
         let mut params: Vec<BuildParams> = [BuildQuality::Fast, BuildQuality::Default, BuildQuality::High]
             .map(BuildParams::for_quality)
             .into();
