@@ -16,7 +16,9 @@
 #       and Mitsuba's version). Prints a JSON line per render (OUT/bench.jsonl),
 #       one per scene (OUT/bench_summary.jsonl: median s/spp of each, the
 #       median of the per-round time ratios, each one's RMSE averaged over the
-#       rounds' seeds, image means) and a markdown table.
+#       rounds' seeds, image means) and a markdown table. Its last column is
+#       the time ratio at equal error: the ratio times (Mitsuba's RMSE /
+#       Lucent's)^2, since an unbiased render's MSE falls as 1/spp.
 #       Spp per scene: SPP_CORNELL=64 SPP_SEED=16 SPP_HEAVY=16 (SPP sets all three)
 #   xtask/mitsuba/compare.sh heavy [ROUNDS] [SPP]     the same for the heavy scene alone
 #                                                      (default 5 rounds of 16 spp)
