@@ -506,7 +506,7 @@ impl Bsdf {
         if self.only_diffuse() {
             return self.lambert_eval_pdf(wo.0, wi.0);
         }
-        (self.eval_unit(wo.0, wi.0), self.pdf_unit(wo.0, wi.0))
+        self.eval_pdf_unit(wo.0, wi.0)
     }
 
     /// Whether the only lobe `sample` ever picks is a plain (uncoupled)
@@ -579,6 +579,43 @@ impl Bsdf {
         if p.is_finite() { p } else { 0.0 }
     }
 
+    /// `eval_unit` and `pdf_unit` in one pass: each number is made by the
+    /// very operations the two make apart, but what both need (the
+    /// Lambertian term, the Phong power, the GGX half vector, `Lambda(wo)`
+    /// and `D(h)`) is computed once.
+    fn eval_pdf_unit(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let mut f = Vec3::ZERO;
+        let mut p = 0.0;
+        let pd = self.prob(DIFFUSE);
+        if pd > 0.0 {
+            let lambert = lobes::lambert_eval(wo, wi);
+            let mut d = lambert;
+            if self.coupled_f0 >= 0.0 && d > 0.0 {
+                d *= pbr::coupling(wo.z.abs(), wi.z.abs(), self.alpha, self.coupled_f0);
+            }
+            f += self.diffuse * d;
+            p += pd * lambert;
+        }
+        let pg = self.prob(GLOSSY);
+        if pg > 0.0 {
+            let (e, q) = lobes::phong_eval_pdf(wo, wi, self.exponent);
+            f += self.glossy * e;
+            p += pg * q;
+        }
+        let pc = self.prob(CONDUCTOR);
+        if pc > 0.0 && !self.smooth_conductor() {
+            let (g, q) = lobes::ggx_eval_pdf(wo, wi, self.alpha);
+            if g > 0.0 {
+                f += self.conductor * g * self.conductor_fresnel(lobes::reflection_cos_half(wo, wi));
+            }
+            p += pc * q;
+        }
+        (
+            if f.is_finite() { f } else { Vec3::ZERO },
+            if p.is_finite() { p } else { 0.0 },
+        )
+    }
+
     /// Samples `wi` for `wo`: `u_lobe` in `[0, 1)` picks the lobe (and,
     /// for the dielectric, reflection or refraction), `u` in `[0, 1)^2` the
     /// direction. `None` when the sample is absorbed (a black BSDF, a lobe
@@ -647,13 +684,13 @@ impl Bsdf {
             _ => return self.sample_dielectric(wo, p, u_rest),
         };
         let wi = unit(wi)?;
-        let pdf = self.pdf_unit(wo, wi);
+        let (f, pdf) = self.eval_pdf_unit(wo, wi);
         if pdf <= 0.0 {
             return None;
         }
         finite(BsdfSample {
             wi,
-            weight: self.eval_unit(wo, wi) / pdf,
+            weight: f / pdf,
             pdf,
             delta: false,
         })

@@ -409,6 +409,76 @@ fn the_one_lobe_paths_give_the_general_codes_bits() {
 }
 
 #[test]
+fn eval_and_pdf_together_give_the_bits_of_each_apart() {
+    // `eval_pdf_unit` shares the lobes' common terms between the value and
+    // the density; both must keep the bits `eval_unit` and `pdf_unit` give.
+    let mut rng = Pcg32::new(29, 7);
+    let mut next = || rng.next_f32();
+    let bsdfs = [
+        // The seed scene's floor and sphere: diffuse plus near-mirror GGX,
+        // diffuse plus dielectric.
+        Material {
+            kd: Vec3::new(0.42, 0.36, 0.30),
+            kr: Vec3::splat(0.35),
+            roughness: 0.1,
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+        Material {
+            kd: Vec3::splat(0.4),
+            kt: Vec3::splat(0.6),
+            ior: 1.05,
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+        Material {
+            kd: Vec3::splat(0.3),
+            ks: Vec3::splat(0.4),
+            shininess: 37.0,
+            kr: Vec3::splat(0.2),
+            roughness: 0.6,
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+        Bsdf::rough_conductor(Vec3::new(0.9, 0.6, 0.3), 0.3),
+        Bsdf::phong(Vec3::splat(0.8), 1e6),
+        Bsdf::metallic_roughness(Vec3::new(0.8, 0.4, 0.2), 0.3, 0.5, 0.2, 1.5),
+        Bsdf::metallic_roughness(Vec3::ONE, 1.0, 0.05, 0.0, 1.5),
+    ];
+    let bits = |f: Vec3, p: f32| (f.to_array().map(f32::to_bits), p.to_bits());
+    for bsdf in bsdfs {
+        let mut nonzero = 0;
+        for i in 0..20_000 {
+            let mut v = || Vec3::new(next(), next(), next()) * 2.0 - 1.0;
+            let (mut wo, mut wi) = (v(), v());
+            match i % 5 {
+                // A reflection pair about the normal (or nearly): where the
+                // glossy lobes are large.
+                0 => wi = Vec3::new(-wo.x, -wo.y, wo.z) + v() * 1e-3,
+                1 => wi.z = 1e-30,
+                _ => {}
+            }
+            if i % 7 == 0 {
+                wo = -wo;
+            }
+            let (Some(lo), Some(li)) = (LocalDir::new(wo), LocalDir::new(wi)) else {
+                continue;
+            };
+            let (wo, wi) = (lo.get(), li.get());
+            let (f, p) = bsdf.eval_pdf_unit(wo, wi);
+            assert_eq!(
+                bits(f, p),
+                bits(bsdf.eval_unit(wo, wi), bsdf.pdf_unit(wo, wi)),
+                "{bsdf:?} {wo} {wi}"
+            );
+            assert_eq!(bits(f, p), bits(bsdf.eval_pdf(lo, li).0, bsdf.eval_pdf(lo, li).1));
+            nonzero += usize::from(p > 0.0 && f.max_element() > 0.0);
+        }
+        assert!(nonzero > 2_000, "{bsdf:?}: {nonzero}");
+    }
+}
+
+#[test]
 fn frame_changes_of_coordinates_give_the_dot_products_bits() {
     // The frame multiplies four-wide matrices; every lane must make the
     // float-at-a-time products and sums in their order.
