@@ -417,7 +417,40 @@ impl Bsdf {
     /// Lambertian diffuse reflection with directional albedo `albedo`
     /// (per channel; two-sided).
     pub fn lambertian(albedo: Vec3) -> Bsdf {
-        Bsdf::mix(albedo, Vec3::ZERO, 0.0, Vec3::ZERO, 0.0, Vec3::ZERO, 1.0)
+        Bsdf::diffuse_only(albedo)
+    }
+
+    /// [`Bsdf::mix`] of a diffuse lobe alone (every other weight zero,
+    /// whatever the other parameters), built without the general
+    /// selection: the same mixture, for a textured diffuse material's
+    /// BSDF at every hit. The only weight is the diffuse mean `m`, so the
+    /// selection total is `m`, each cumulative probability `m / m = 1` (for
+    /// `m` positive and finite, else all zero), and the absent lobes'
+    /// parameters are the ones `mix` zeroes.
+    #[inline]
+    pub(crate) fn diffuse_only(diffuse: Vec3) -> Bsdf {
+        let diffuse = clean(diffuse);
+        let m = diffuse.element_sum() / 3.0;
+        let cdf = if m > 0.0 && m.is_finite() { [1.0; 4] } else { [0.0; 4] };
+        Bsdf {
+            diffuse,
+            glossy: Vec3::ZERO,
+            exponent: 0.0,
+            conductor: Vec3::ZERO,
+            alpha: 0.0,
+            dielectric: Vec3::ZERO,
+            eta: 1.0,
+            schlick: false,
+            f0: Vec3::ONE,
+            f90: 1.0,
+            coupled_f0: -1.0,
+            cdf,
+            kind: if cdf[DIFFUSE] == 1.0 {
+                Kind::Diffuse
+            } else {
+                Kind::Delta
+            },
+        }
     }
 
     /// The normalised Phong lobe of Lafortune and Willems 1994 around the

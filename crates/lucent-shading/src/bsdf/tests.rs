@@ -479,6 +479,69 @@ fn eval_and_pdf_together_give_the_bits_of_each_apart() {
 }
 
 #[test]
+fn a_diffuse_mixture_built_directly_is_the_general_one() {
+    // `diffuse_only` (what a diffuse material's BSDF and `lambertian` are)
+    // must be the mixture `mix` makes, to the bit (the debug print shows
+    // the sign of zero too), for colours that are black, tiny, huge,
+    // negative, NaN or infinite in some channel.
+    let mut rng = Pcg32::new(5, 17);
+    let mut next = || rng.next_f32();
+    let specials = [
+        0.0,
+        -0.0,
+        1e-45,
+        1e-30,
+        0.5,
+        1.0,
+        3e38,
+        f32::MAX,
+        -1.0,
+        f32::NAN,
+        f32::INFINITY,
+    ];
+    let mut colours = vec![];
+    for a in specials {
+        for b in [0.0, 0.3, f32::NAN, 3e38] {
+            colours.push(Vec3::new(a, b, 0.0));
+            colours.push(Vec3::new(b, 0.0, a));
+        }
+    }
+    for _ in 0..5_000 {
+        colours.push(Vec3::new(next(), next(), next()) * 1.5 - 0.25);
+    }
+    for c in colours {
+        let (shininess, alpha, eta) = (next() * 100.0, next(), next() * 2.0);
+        let general = Bsdf::mix(c, Vec3::ZERO, shininess, Vec3::ZERO, alpha, Vec3::ZERO, eta);
+        assert_eq!(format!("{:?}", Bsdf::diffuse_only(c)), format!("{general:?}"), "{c}");
+        assert_eq!(format!("{:?}", Bsdf::lambertian(c)), format!("{general:?}"), "{c}");
+        // A diffuse material with a tint (a texture colour) goes the short
+        // way too.
+        let m = Material {
+            kd: c,
+            shininess,
+            roughness: alpha,
+            ior: eta,
+            ..Material::default()
+        };
+        let tint = Vec3::new(next(), next(), next()) * 1.2;
+        let unit = |v: Vec3| v.max(Vec3::ZERO).min(Vec3::ONE);
+        let kd = unit(c);
+        let most = kd.max_element();
+        let scale = if most > 1.0 { 1.0 / most } else { 1.0 };
+        let general = Bsdf::mix(
+            kd * unit(tint) * scale,
+            Vec3::ZERO,
+            shininess,
+            Vec3::ZERO,
+            alpha * alpha,
+            Vec3::ZERO,
+            eta,
+        );
+        assert_eq!(format!("{:?}", m.bsdf(tint)), format!("{general:?}"), "{c} {tint}");
+    }
+}
+
+#[test]
 fn frame_changes_of_coordinates_give_the_dot_products_bits() {
     // The frame multiplies four-wide matrices; every lane must make the
     // float-at-a-time products and sums in their order.
