@@ -71,6 +71,10 @@ pub struct EnvLight {
     /// For a map of one texel (the constant background), the density,
     /// which is then the same in every direction (see [`EnvLight::pdf`]).
     uniform_pdf: Option<f32>,
+    /// For a map of one texel, the radiance from every direction: the
+    /// texel times the intensity, the product [`EnvLight::eval`] would
+    /// make at each call.
+    constant: Option<Vec3>,
 }
 
 impl EnvLight {
@@ -160,9 +164,11 @@ impl EnvLight {
             inv_total: (1.0 / total) as f32,
             luminance_integral: (total * f64::from(intensity)) as f32,
             uniform_pdf: None,
+            constant: None,
         };
         if light.map.width() == 1 && light.map.height() == 1 {
             light.uniform_pdf = Some(light.cell_pdf(Vec3::Y));
+            light.constant = Some(light.eval_map(Vec3::Y));
         }
         Some(light)
     }
@@ -180,8 +186,19 @@ impl EnvLight {
     }
 
     /// Radiance arriving from the unit direction `dir` (world space).
-    #[inline]
+    /// Inlined: every path that leaves the scene asks, and the constant
+    /// background's answer is kept.
+    #[inline(always)]
     pub fn eval(&self, dir: Vec3) -> Vec3 {
+        match self.constant {
+            Some(radiance) => radiance,
+            None => self.eval_map(dir),
+        }
+    }
+
+    /// [`EnvLight::eval`] by the map.
+    #[inline(never)]
+    fn eval_map(&self, dir: Vec3) -> Vec3 {
         self.map.radiance(self.map_from_world * dir) * self.intensity
     }
 

@@ -361,7 +361,7 @@ impl LightSet {
 
     /// Solid-angle density with which [`LightSet::sample`] picks the
     /// environment in direction `dir`, its selection probability included.
-    #[inline]
+    #[inline(always)]
     pub fn pdf_environment(&self, dir: Vec3) -> f32 {
         let (Some(env), Some(&p)) = (
             &self.environment,

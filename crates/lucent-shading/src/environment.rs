@@ -181,9 +181,16 @@ impl EnvironmentMap {
     }
 
     /// Bilinear radiance at texture coordinates `uv` (see the module docs);
-    /// NaN coordinates read the top-left texel.
+    /// NaN coordinates read the top-left texel. A map of one texel is a
+    /// constant: its texel, exactly, wherever `uv` lies.
     #[inline]
     pub fn lookup(&self, uv: Vec2) -> Vec3 {
+        if let [texel] = self.texels[..] {
+            // The blend below of four equal corners would give the texel
+            // give or take a unit in the last place, which way depending on
+            // the direction (0.03 drifts for about a third of them).
+            return texel;
+        }
         let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
         let (c, r, fx, fy) = self.cell(uv);
         let r1 = if self.height == 1 { r } else { r + 1 };
@@ -193,9 +200,14 @@ impl EnvironmentMap {
     }
 
     /// Radiance arriving from the unit direction `d` (in the map's frame),
-    /// i.e. the radiance seen looking along `d`.
+    /// i.e. the radiance seen looking along `d`; for a map of one texel
+    /// (the constant background) that texel, without finding where `d`
+    /// points.
     #[inline]
     pub fn radiance(&self, d: Vec3) -> Vec3 {
+        if let [texel] = self.texels[..] {
+            return texel;
+        }
         self.lookup(direction_to_uv(d))
     }
 }
@@ -242,6 +254,46 @@ mod tests {
             assert!(close(direction_to_uv(uv_to_direction(uv)), uv), "{uv}");
         }
         assert_eq!(direction_to_uv(Vec3::NAN), Vec2::ZERO);
+    }
+
+    #[test]
+    fn a_one_texel_map_is_exactly_constant() {
+        // The constant background: its texel, to the bit, in every
+        // direction and at every coordinate (the bilinear blend of four
+        // equal corners drifted by a unit in the last place for some).
+        let mut state = 0x9e37_79b9_u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32 * 2.0 - 1.0
+        };
+        for texel in [
+            Vec3::new(0.02, 0.02, 0.03),
+            Vec3::new(0.7, 1.3, 1e-20),
+            Vec3::splat(f32::MAX),
+            Vec3::ZERO,
+        ] {
+            let Ok(map) = EnvironmentMap::new(1, 1, vec![texel]) else {
+                panic!("map")
+            };
+            for d in [Vec3::ZERO, Vec3::NAN, -Vec3::Z, Vec3::new(0.0, 1.0, -0.0)] {
+                assert_eq!(map.radiance(d), texel, "{d}");
+            }
+            for _ in 0..10_000 {
+                let d = Vec3::new(next(), next(), next());
+                assert_eq!(
+                    map.radiance(d).to_array().map(f32::to_bits),
+                    texel.to_array().map(f32::to_bits)
+                );
+                assert_eq!(map.radiance(d.normalize_or_zero()), texel);
+                let uv = Vec2::new(next(), next()) * 3.0;
+                assert_eq!(
+                    map.lookup(uv).to_array().map(f32::to_bits),
+                    texel.to_array().map(f32::to_bits)
+                );
+            }
+        }
     }
 
     #[test]

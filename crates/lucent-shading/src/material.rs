@@ -213,6 +213,10 @@ impl Material {
         let (kd, ks, kr, kt) = (unit(self.kd), unit(self.ks), unit(self.kr), unit(self.kt));
         let most = (kd + ks + kr + kt).max_element();
         let scale = if most > 1.0 { 1.0 / most } else { 1.0 };
+        if ks == Vec3::ZERO && kr == Vec3::ZERO && kt == Vec3::ZERO {
+            // Diffuse alone (a textured one builds this at every hit).
+            return Bsdf::diffuse_only(kd * unit(tint) * scale);
+        }
         let roughness = if self.roughness.is_nan() {
             0.0
         } else {

@@ -175,17 +175,10 @@ impl Texture {
         let (fx, fy) = (x - x0, y - y0);
         // `as i64` saturates, so huge coordinates cannot overflow below.
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let (x1, y1) = (x0.saturating_add(1), y0.saturating_add(1));
-        (
-            [
-                self.index(x0, y0),
-                self.index(x1, y0),
-                self.index(x0, y1),
-                self.index(x1, y1),
-            ],
-            fx,
-            fy,
-        )
+        let (x0, x1) = wrap_pair(x0, self.width, self.wrap);
+        let (y0, y1) = wrap_pair(y0, self.height, self.wrap_v);
+        let w = self.width as usize;
+        ([y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1], fx, fy)
     }
 
     /// The texture coordinates the lookup of `uv` reads.
@@ -222,6 +215,20 @@ impl Texture {
     }
 }
 
+/// `wrap(i, n, mode)` and `wrap(i.saturating_add(1), n, mode)`, the two
+/// columns (or rows) of a bilinear footprint: repeating, the second is the
+/// first plus one, back to 0 at `n` (one remainder instead of two).
+#[inline]
+fn wrap_pair(i: i64, n: u32, mode: WrapMode) -> (usize, usize) {
+    match mode {
+        WrapMode::Repeat if i < i64::MAX => {
+            let a = wrap(i, n, mode);
+            (a, if a + 1 == n as usize { 0 } else { a + 1 })
+        }
+        _ => (wrap(i, n, mode), wrap(i.saturating_add(1), n, mode)),
+    }
+}
+
 fn wrap(i: i64, n: u32, mode: WrapMode) -> usize {
     let n = n as i64;
     match mode {
@@ -238,6 +245,34 @@ fn wrap(i: i64, n: u32, mode: WrapMode) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn footprints_wrap_both_corners_as_each_alone() {
+        // The footprint wraps its two columns (rows) together; each must be
+        // what wrapping it alone gives, in every mode and at the extremes.
+        let mut state = 0x2545_f491_u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let mut is: Vec<i64> = vec![i64::MIN, i64::MIN + 1, -1, 0, 1, 2, 3, 4, 5, i64::MAX - 1, i64::MAX];
+        for _ in 0..5_000 {
+            is.push(i64::from(next() as i32) / 1_000);
+        }
+        for n in [1u32, 2, 3, 7, 1024] {
+            for mode in [WrapMode::Repeat, WrapMode::Clamp, WrapMode::MirroredRepeat] {
+                for &i in &is {
+                    assert_eq!(
+                        wrap_pair(i, n, mode),
+                        (wrap(i, n, mode), wrap(i.saturating_add(1), n, mode)),
+                        "{i} {n} {mode:?}"
+                    );
+                }
+            }
+        }
+    }
 
     /// 2x2 texture: top row red, green; bottom row blue, white.
     fn tiny(wrap: WrapMode) -> Texture {

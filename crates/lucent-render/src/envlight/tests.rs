@@ -279,8 +279,12 @@ fn a_one_texel_map_has_the_density_its_cell_gives_everywhere() {
         }
         for d in dirs {
             assert_eq!(light.pdf(d).to_bits(), light.cell_pdf(d).to_bits(), "{d}");
+            // The kept radiance is what the map gives, too.
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            assert_eq!(bits(light.eval(d)), bits(light.eval_map(d)), "{d}");
         }
         assert!(uniform > 0.0);
     }
     assert!(light(gradient(), 0.0).uniform_pdf.is_none());
+    assert!(light(gradient(), 0.0).constant.is_none());
 }

@@ -81,6 +81,18 @@ pub(super) fn phong_pdf(wo: Vec3, wi: Vec3, n: f32) -> f32 {
     phong_cos(wo, wi).map_or(0.0, |c| (n + 1.0) * (0.5 * FRAC_1_PI) * c.powf(n))
 }
 
+/// [`phong_eval`] and [`phong_pdf`] together, `cos^n alpha` raised once.
+#[inline]
+pub(super) fn phong_eval_pdf(wo: Vec3, wi: Vec3, n: f32) -> (f32, f32) {
+    phong_cos(wo, wi).map_or((0.0, 0.0), |c| {
+        let power = c.powf(n);
+        (
+            (n + 2.0) * (0.5 * FRAC_1_PI) * power * wi.z.abs(),
+            (n + 1.0) * (0.5 * FRAC_1_PI) * power,
+        )
+    })
+}
+
 /// A direction around the mirror direction with density proportional to
 /// `cos^n alpha`, or `None` when it falls below the surface.
 #[inline]
@@ -149,6 +161,20 @@ pub(super) fn ggx_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
     };
     let g1 = 1.0 / (1.0 + ggx_lambda(wo, alpha));
     g1 * ggx_d(h, alpha) / (4.0 * wo.z)
+}
+
+/// [`ggx_eval`] and [`ggx_pdf`] together: one half vector, one
+/// `Lambda(wo)`, one `D(h)`, each number made as the two make it apart.
+#[inline]
+pub(super) fn ggx_eval_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> (f32, f32) {
+    let Some((wo, wi, h)) = reflection_half_vector(wo, wi) else {
+        return (0.0, 0.0);
+    };
+    let lambda_o = ggx_lambda(wo, alpha);
+    let d = ggx_d(h, alpha);
+    let g2 = 1.0 / (1.0 + lambda_o + ggx_lambda(wi, alpha));
+    let g1 = 1.0 / (1.0 + lambda_o);
+    (d * g2 / (4.0 * wo.z), g1 * d / (4.0 * wo.z))
 }
 
 /// Samples a visible microfacet normal and reflects `wo` about it.

@@ -417,7 +417,40 @@ impl Bsdf {
     /// Lambertian diffuse reflection with directional albedo `albedo`
     /// (per channel; two-sided).
     pub fn lambertian(albedo: Vec3) -> Bsdf {
-        Bsdf::mix(albedo, Vec3::ZERO, 0.0, Vec3::ZERO, 0.0, Vec3::ZERO, 1.0)
+        Bsdf::diffuse_only(albedo)
+    }
+
+    /// [`Bsdf::mix`] of a diffuse lobe alone (every other weight zero,
+    /// whatever the other parameters), built without the general
+    /// selection: the same mixture, for a textured diffuse material's
+    /// BSDF at every hit. The only weight is the diffuse mean `m`, so the
+    /// selection total is `m`, each cumulative probability `m / m = 1` (for
+    /// `m` positive and finite, else all zero), and the absent lobes'
+    /// parameters are the ones `mix` zeroes.
+    #[inline]
+    pub(crate) fn diffuse_only(diffuse: Vec3) -> Bsdf {
+        let diffuse = clean(diffuse);
+        let m = diffuse.element_sum() / 3.0;
+        let cdf = if m > 0.0 && m.is_finite() { [1.0; 4] } else { [0.0; 4] };
+        Bsdf {
+            diffuse,
+            glossy: Vec3::ZERO,
+            exponent: 0.0,
+            conductor: Vec3::ZERO,
+            alpha: 0.0,
+            dielectric: Vec3::ZERO,
+            eta: 1.0,
+            schlick: false,
+            f0: Vec3::ONE,
+            f90: 1.0,
+            coupled_f0: -1.0,
+            cdf,
+            kind: if cdf[DIFFUSE] == 1.0 {
+                Kind::Diffuse
+            } else {
+                Kind::Delta
+            },
+        }
     }
 
     /// The normalised Phong lobe of Lafortune and Willems 1994 around the
@@ -506,7 +539,7 @@ impl Bsdf {
         if self.only_diffuse() {
             return self.lambert_eval_pdf(wo.0, wi.0);
         }
-        (self.eval_unit(wo.0, wi.0), self.pdf_unit(wo.0, wi.0))
+        self.eval_pdf_unit(wo.0, wi.0)
     }
 
     /// Whether the only lobe `sample` ever picks is a plain (uncoupled)
@@ -579,6 +612,43 @@ impl Bsdf {
         if p.is_finite() { p } else { 0.0 }
     }
 
+    /// `eval_unit` and `pdf_unit` in one pass: each number is made by the
+    /// very operations the two make apart, but what both need (the
+    /// Lambertian term, the Phong power, the GGX half vector, `Lambda(wo)`
+    /// and `D(h)`) is computed once.
+    fn eval_pdf_unit(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let mut f = Vec3::ZERO;
+        let mut p = 0.0;
+        let pd = self.prob(DIFFUSE);
+        if pd > 0.0 {
+            let lambert = lobes::lambert_eval(wo, wi);
+            let mut d = lambert;
+            if self.coupled_f0 >= 0.0 && d > 0.0 {
+                d *= pbr::coupling(wo.z.abs(), wi.z.abs(), self.alpha, self.coupled_f0);
+            }
+            f += self.diffuse * d;
+            p += pd * lambert;
+        }
+        let pg = self.prob(GLOSSY);
+        if pg > 0.0 {
+            let (e, q) = lobes::phong_eval_pdf(wo, wi, self.exponent);
+            f += self.glossy * e;
+            p += pg * q;
+        }
+        let pc = self.prob(CONDUCTOR);
+        if pc > 0.0 && !self.smooth_conductor() {
+            let (g, q) = lobes::ggx_eval_pdf(wo, wi, self.alpha);
+            if g > 0.0 {
+                f += self.conductor * g * self.conductor_fresnel(lobes::reflection_cos_half(wo, wi));
+            }
+            p += pc * q;
+        }
+        (
+            if f.is_finite() { f } else { Vec3::ZERO },
+            if p.is_finite() { p } else { 0.0 },
+        )
+    }
+
     /// Samples `wi` for `wo`: `u_lobe` in `[0, 1)` picks the lobe (and,
     /// for the dielectric, reflection or refraction), `u` in `[0, 1)^2` the
     /// direction. `None` when the sample is absorbed (a black BSDF, a lobe
@@ -647,13 +717,13 @@ impl Bsdf {
             _ => return self.sample_dielectric(wo, p, u_rest),
         };
         let wi = unit(wi)?;
-        let pdf = self.pdf_unit(wo, wi);
+        let (f, pdf) = self.eval_pdf_unit(wo, wi);
         if pdf <= 0.0 {
             return None;
         }
         finite(BsdfSample {
             wi,
-            weight: self.eval_unit(wo, wi) / pdf,
+            weight: f / pdf,
             pdf,
             delta: false,
         })

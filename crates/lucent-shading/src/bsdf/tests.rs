@@ -409,6 +409,139 @@ fn the_one_lobe_paths_give_the_general_codes_bits() {
 }
 
 #[test]
+fn eval_and_pdf_together_give_the_bits_of_each_apart() {
+    // `eval_pdf_unit` shares the lobes' common terms between the value and
+    // the density; both must keep the bits `eval_unit` and `pdf_unit` give.
+    let mut rng = Pcg32::new(29, 7);
+    let mut next = || rng.next_f32();
+    let bsdfs = [
+        // The seed scene's floor and sphere: diffuse plus near-mirror GGX,
+        // diffuse plus dielectric.
+        Material {
+            kd: Vec3::new(0.42, 0.36, 0.30),
+            kr: Vec3::splat(0.35),
+            roughness: 0.1,
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+        Material {
+            kd: Vec3::splat(0.4),
+            kt: Vec3::splat(0.6),
+            ior: 1.05,
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+        Material {
+            kd: Vec3::splat(0.3),
+            ks: Vec3::splat(0.4),
+            shininess: 37.0,
+            kr: Vec3::splat(0.2),
+            roughness: 0.6,
+            ..Material::default()
+        }
+        .bsdf(Vec3::ONE),
+        Bsdf::rough_conductor(Vec3::new(0.9, 0.6, 0.3), 0.3),
+        Bsdf::phong(Vec3::splat(0.8), 1e6),
+        Bsdf::metallic_roughness(Vec3::new(0.8, 0.4, 0.2), 0.3, 0.5, 0.2, 1.5),
+        Bsdf::metallic_roughness(Vec3::ONE, 1.0, 0.05, 0.0, 1.5),
+    ];
+    let bits = |f: Vec3, p: f32| (f.to_array().map(f32::to_bits), p.to_bits());
+    for bsdf in bsdfs {
+        let mut nonzero = 0;
+        for i in 0..20_000 {
+            let mut v = || Vec3::new(next(), next(), next()) * 2.0 - 1.0;
+            let (mut wo, mut wi) = (v(), v());
+            match i % 5 {
+                // A reflection pair about the normal (or nearly): where the
+                // glossy lobes are large.
+                0 => wi = Vec3::new(-wo.x, -wo.y, wo.z) + v() * 1e-3,
+                1 => wi.z = 1e-30,
+                _ => {}
+            }
+            if i % 7 == 0 {
+                wo = -wo;
+            }
+            let (Some(lo), Some(li)) = (LocalDir::new(wo), LocalDir::new(wi)) else {
+                continue;
+            };
+            let (wo, wi) = (lo.get(), li.get());
+            let (f, p) = bsdf.eval_pdf_unit(wo, wi);
+            assert_eq!(
+                bits(f, p),
+                bits(bsdf.eval_unit(wo, wi), bsdf.pdf_unit(wo, wi)),
+                "{bsdf:?} {wo} {wi}"
+            );
+            assert_eq!(bits(f, p), bits(bsdf.eval_pdf(lo, li).0, bsdf.eval_pdf(lo, li).1));
+            nonzero += usize::from(p > 0.0 && f.max_element() > 0.0);
+        }
+        assert!(nonzero > 2_000, "{bsdf:?}: {nonzero}");
+    }
+}
+
+#[test]
+fn a_diffuse_mixture_built_directly_is_the_general_one() {
+    // `diffuse_only` (what a diffuse material's BSDF and `lambertian` are)
+    // must be the mixture `mix` makes, to the bit (the debug print shows
+    // the sign of zero too), for colours that are black, tiny, huge,
+    // negative, NaN or infinite in some channel.
+    let mut rng = Pcg32::new(5, 17);
+    let mut next = || rng.next_f32();
+    let specials = [
+        0.0,
+        -0.0,
+        1e-45,
+        1e-30,
+        0.5,
+        1.0,
+        3e38,
+        f32::MAX,
+        -1.0,
+        f32::NAN,
+        f32::INFINITY,
+    ];
+    let mut colours = vec![];
+    for a in specials {
+        for b in [0.0, 0.3, f32::NAN, 3e38] {
+            colours.push(Vec3::new(a, b, 0.0));
+            colours.push(Vec3::new(b, 0.0, a));
+        }
+    }
+    for _ in 0..5_000 {
+        colours.push(Vec3::new(next(), next(), next()) * 1.5 - 0.25);
+    }
+    for c in colours {
+        let (shininess, alpha, eta) = (next() * 100.0, next(), next() * 2.0);
+        let general = Bsdf::mix(c, Vec3::ZERO, shininess, Vec3::ZERO, alpha, Vec3::ZERO, eta);
+        assert_eq!(format!("{:?}", Bsdf::diffuse_only(c)), format!("{general:?}"), "{c}");
+        assert_eq!(format!("{:?}", Bsdf::lambertian(c)), format!("{general:?}"), "{c}");
+        // A diffuse material with a tint (a texture colour) goes the short
+        // way too.
+        let m = Material {
+            kd: c,
+            shininess,
+            roughness: alpha,
+            ior: eta,
+            ..Material::default()
+        };
+        let tint = Vec3::new(next(), next(), next()) * 1.2;
+        let unit = |v: Vec3| v.max(Vec3::ZERO).min(Vec3::ONE);
+        let kd = unit(c);
+        let most = kd.max_element();
+        let scale = if most > 1.0 { 1.0 / most } else { 1.0 };
+        let general = Bsdf::mix(
+            kd * unit(tint) * scale,
+            Vec3::ZERO,
+            shininess,
+            Vec3::ZERO,
+            alpha * alpha,
+            Vec3::ZERO,
+            eta,
+        );
+        assert_eq!(format!("{:?}", m.bsdf(tint)), format!("{general:?}"), "{c} {tint}");
+    }
+}
+
+#[test]
 fn frame_changes_of_coordinates_give_the_dot_products_bits() {
     // The frame multiplies four-wide matrices; every lane must make the
     // float-at-a-time products and sums in their order.
