@@ -450,6 +450,7 @@ fn time_rung(
     let preset = rung.preset;
     let mut settings = *base;
     preset.apply(&mut settings);
+    settings.denoise = rung.denoise;
     let start = Instant::now();
     let rs = extract_with(scene, &preset.extract_options()).map_err(|e| e.to_string())?;
     if settings.integrator == Integrator::Path {
@@ -458,7 +459,7 @@ fn time_rung(
         let _ = rs.flat_bvh();
     }
     let extract_s = start.elapsed().as_secs_f64();
-    if rung.denoise && settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+    if rung.denoise && settings.one_pass() {
         // A preview: its reflected light denoised at the reduced size,
         // guided by the same samples' buffers, then put together.
         let denoiser = denoiser.ok_or("a denoised rung without a denoiser")?;
@@ -531,6 +532,10 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
                 d += &format!(
                     ", reflected light traced at 1/{} size and scaled up, lights seen directly at full size ({EMISSION_GRID}x{EMISSION_GRID} rays per pixel)",
                     s.lighting_scale
+                );
+            } else if s.smooth && !denoise {
+                d += &format!(
+                    ", reflected light smoothed by the edge-aware filter, lights seen directly apart ({EMISSION_GRID}x{EMISSION_GRID} rays per pixel)"
                 );
             }
             d
