@@ -19,7 +19,8 @@
 //!   reflected light traced at a quarter of the width and height
 //!   ([`PREVIEW_LIGHTING_SCALE`]) and scaled up: a blurred but physically
 //!   based approximation of what the user gets when the camera stops, in
-//!   about the time of the report's Whitted preview.
+//!   at most twice the time of the report's Whitted preview (0.79 and 1.76
+//!   times on the seed scene and the Cornell box, docs/benchmarks.md).
 //! - `interactive` is 8 samples at full size with that filter
 //!   ([`RenderSettings::smooth`]): sharper and less noisy than `preview`,
 //!   and, on the Cornell box, than 8 unfiltered samples, which measured
