@@ -23,7 +23,8 @@
 //! Writes, under `target/tradeoff/`: `report.md` (a table per scene,
 //! machine, date, commit, command), `results.tsv`, `tradeoff.png` (error
 //! against time, log-log), `STEM-contact.png` (every preset's image beside
-//! the reference, labelled) and each preset's image as rendered. The report
+//! the reference, labelled), each preset's image as rendered and its FLIP
+//! error map (`images/STEM-RUNG-flip.png`, magma: black is no error). The report
 //! says whether each scene's curve is monotone (every slower preset has a
 //! lower RMSE); `--check` makes a non-monotone curve an error.
 //!
@@ -35,7 +36,7 @@ mod plot;
 mod reference;
 mod report;
 
-use imaging::{Image, flip_mean, upsample};
+use imaging::{Image, flip_map, upsample};
 use lucent_denoise::emission::{DirectEmission, EMISSION_SPP};
 use lucent_denoise::{Denoiser, Quality};
 use lucent_geom::Named;
@@ -311,7 +312,10 @@ fn measure_scene(path: &Path, opts: &Opts, out_dir: &Path) -> Result<SceneResult
         lucent_assets::save_png(&png, image.width, image.height, &image.to_srgb8()).map_err(|e| e.to_string())?;
         let up = upsample(&image, reference.image.width, reference.image.height);
         let error = metrics::compare(&up.pixels, &reference.image.pixels).ok_or("empty image")?;
-        let flip = flip_mean(&up, &reference.image).ok_or("empty image")?;
+        let flip = flip_map(&up, &reference.image).ok_or("empty image")?;
+        let map_png = out_dir.join("images").join(format!("{stem}-{}-flip.png", rung.name));
+        lucent_assets::save_png(&map_png, up.width, up.height, &flip.magma).map_err(|e| e.to_string())?;
+        let flip = flip.mean;
         presets.push(PresetResult {
             name: rung.name.clone(),
             series: rung.series,
@@ -446,6 +450,7 @@ fn time_rung(
     let preset = rung.preset;
     let mut settings = *base;
     preset.apply(&mut settings);
+    settings.denoise = rung.denoise;
     let start = Instant::now();
     let rs = extract_with(scene, &preset.extract_options()).map_err(|e| e.to_string())?;
     if settings.integrator == Integrator::Path {
@@ -454,7 +459,7 @@ fn time_rung(
         let _ = rs.flat_bvh();
     }
     let extract_s = start.elapsed().as_secs_f64();
-    if rung.denoise && settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+    if rung.denoise && settings.one_pass() {
         // A preview: its reflected light denoised at the reduced size,
         // guided by the same samples' buffers, then put together.
         let denoiser = denoiser.ok_or("a denoised rung without a denoiser")?;
@@ -527,6 +532,10 @@ fn describe(p: &QualityPreset, base: &RenderSettings, denoise: bool) -> String {
                 d += &format!(
                     ", reflected light traced at 1/{} size and scaled up, lights seen directly at full size ({EMISSION_GRID}x{EMISSION_GRID} rays per pixel)",
                     s.lighting_scale
+                );
+            } else if s.smooth && !denoise {
+                d += &format!(
+                    ", reflected light smoothed by the edge-aware filter, lights seen directly apart ({EMISSION_GRID}x{EMISSION_GRID} rays per pixel)"
                 );
             }
             d
@@ -681,6 +690,7 @@ mod tests {
             assert!(p.error.rmse.is_finite() && p.error.rmse > 0.0, "{p:?}");
             assert!((0.0..=1.0).contains(&p.flip), "{p:?}");
             assert!(out.join(format!("images/tiny-{}.png", p.name)).is_file());
+            assert!(out.join(format!("images/tiny-{}-flip.png", p.name)).is_file());
         }
         // 32 spp in 16 batches: a noise estimate exists.
         assert!(first.reference.noise_rmse.is_finite() && first.reference.noise_rmse > 0.0);

@@ -3,10 +3,13 @@
 //!
 //! `lucent-bench rays` traces the Embree peer's ray files with the
 //! traversal core alone and compares hits ray for ray (see [`rays`]);
-//! `xtask/embree/compare.sh` and `bench.sh` drive it.
+//! `xtask/embree/compare.sh` and `bench.sh` drive it. `lucent-bench
+//! denoise` times Intel Open Image Denoise alone per image size (see
+//! [`denoise`]).
 #![forbid(unsafe_code)]
 #![allow(clippy::print_stdout, reason = "a command-line program reports on stdout")]
 
+mod denoise;
 mod rays;
 
 use clap::{Parser, Subcommand};
@@ -27,11 +30,14 @@ struct Cli {
 enum Command {
     /// Time the traversal core alone on a ray file (the Embree peer's formats).
     Rays(rays::RaysBenchArgs),
+    /// Time Intel Open Image Denoise alone (RT filter, HDR, albedo and normal) per image size.
+    Denoise(denoise::DenoiseBenchArgs),
 }
 
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Rays(args) => rays::run(args),
+        Command::Denoise(args) => denoise::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,5 +1,5 @@
 //! Named quality presets: plain settings that trade render time for
-//! accuracy, from a quick Whitted preview to a low-noise path-traced render.
+//! accuracy, from a one-pass path-traced preview to a low-noise reference.
 //!
 //! A preset is data, not behaviour: [`QualityPreset::apply`] copies its
 //! numbers into a [`RenderSettings`] and [`QualityPreset::extract_options`]
@@ -11,13 +11,24 @@
 //! render, and every preset of the ladder ([`PRESETS`]) aims at that same
 //! image: all four path trace, each costlier one with more pixels or
 //! samples, longer paths, later Russian roulette and, for the reference,
-//! the best BVH. The cheapest, `preview`, is direct light plus one bounce
-//! at half resolution with one sample: a noisy but unbiased-in-look
-//! approximation of what the user gets when the camera stops. Its one-pass
-//! variant ([`RenderSettings::lighting_scale`], [`crate::preview`]) is
-//! closer to the truth on the Cornell box in the same time, but is not the
-//! preset: there it is more accurate than `interactive` undenoised, which
-//! would break the ladder's order (docs/benchmarks.md).
+//! the best BVH. The two cheap rungs are one pass each ([`crate::preview`],
+//! [`RenderSettings::one_pass`]): the path-traced light reflected off
+//! surfaces is smoothed by an edge-aware filter guided by albedo, normal
+//! and depth, while the lights the camera sees are drawn apart, sharp.
+//! - `preview` is direct light plus one bounce with one sample, its
+//!   reflected light traced at a quarter of the width and height
+//!   ([`PREVIEW_LIGHTING_SCALE`]) and scaled up: a blurred but physically
+//!   based approximation of what the user gets when the camera stops, in
+//!   at most twice the time of the report's Whitted preview (0.79 and 1.76
+//!   times on the seed scene and the Cornell box, docs/benchmarks.md).
+//! - `interactive` is 8 samples at full size with that filter
+//!   ([`RenderSettings::smooth`]): sharper and less noisy than `preview`,
+//!   and, on the Cornell box, than 8 unfiltered samples, which measured
+//!   less accurate than the one-pass `preview` and so could not be the
+//!   rung above it (docs/benchmarks.md).
+//!
+//! `final` and `reference` are plain sets of samples, converging to the
+//! truth.
 //!
 //! The report's Whitted model (Gouraud shading at half resolution) is the
 //! separate preset [`WHITTED`] (`--preset whitted`), off the ladder: the
@@ -33,14 +44,18 @@
 //! instead of black, and `preview` clamps indirect light at
 //! [`PREVIEW_CLAMP`] (biased: caustics come out darker, in exchange for no
 //! fireflies). `preview` also keeps the path tracer on the two-level BVH
-//! (`flat_bvh: false`): at one sample per pixel on half the pixels, the
-//! one-level tree's second build costs more than it saves. `final` and
+//! (`flat_bvh: false`): at one sample per pixel on a sixteenth of the
+//! pixels, the one-level tree's second build costs more than it saves. `final` and
 //! `reference` use none of this: they converge to the truth.
 //!
 //! A preset may ask for denoising (`denoise` in its [`QualityPreset::settings`]; none of the
 //! built-in ones does, so they all render without Intel Open Image
 //! Denoise installed); `--denoise` adds it to any of them, and `cargo
-//! xtask tradeoff` measures every rung with and without it.
+//! xtask tradeoff` measures every rung with and without it. Denoising
+//! replaces the edge-aware filter: `preview` then denoises its reduced
+//! reflected light, and `interactive` is the ordinary denoised render of
+//! its 8 samples (refined pass by pass in the viewer, allowed a time
+//! budget or an error target).
 
 use crate::{BuildQuality, ExtractOptions, Integrator, RenderOverrides, RenderSettings, Shading};
 
@@ -57,8 +72,10 @@ use crate::{BuildQuality, ExtractOptions, Integrator, RenderOverrides, RenderSet
 /// let mut settings = scene;
 /// let preview = quality::preset("preview").expect("a built-in preset");
 /// preview.apply(&mut settings);
-/// assert_eq!((settings.width, settings.height, settings.lighting_scale), (320, 180, 1));
+/// // Full size, its reflected light traced at a quarter of it.
+/// assert_eq!((settings.width, settings.height, settings.lighting_scale), (640, 360, 4));
 /// assert_eq!(Some(settings.integrator), preview.settings.integrator);
+/// assert!(settings.one_pass());
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QualityPreset {
@@ -104,13 +121,21 @@ pub const WHITTED: QualityPreset = QualityPreset {
 /// caustics and bright interreflection.
 pub const PREVIEW_CLAMP: f32 = 1.0;
 
+/// `preview`'s [`RenderSettings::lighting_scale`]: reflected light traced at
+/// a quarter of the width and height. On the Cornell box (RMSE against an
+/// 1024-spp render, mean of ten seeds) a half, a third, a quarter and a
+/// sixth all gave 0.106 to 0.110 with the lights at full size: the blur
+/// of scaling up costs about what the extra samples' noise would, and a
+/// quarter traces a sixteenth of the paths.
+pub const PREVIEW_LIGHTING_SCALE: u32 = 4;
+
 /// The physical ladder, cheapest first (the viewer's keys F1-F4 in this
 /// order): every preset path traces the same image.
 pub const PRESETS: [QualityPreset; 4] = [
     QualityPreset {
         name: "preview",
-        description: "path tracing, direct light and one bounce (glass and mirrors free), indirect light clamped, half resolution, 1 sample: a quick, noisy look at the final image",
-        resolution_scale: 0.5,
+        description: "path tracing, direct light and one bounce (glass and mirrors free), indirect light clamped, 1 sample, traced at a quarter of the size, smoothed and scaled up, the lights seen directly at full size: a quick, blurred look at the final image",
+        resolution_scale: 1.0,
         settings: RenderOverrides {
             spp: Some(1),
             integrator: Some(Integrator::Path),
@@ -120,7 +145,8 @@ pub const PRESETS: [QualityPreset; 4] = [
             rr_depth: Some(2),
             clamp_indirect: Some(PREVIEW_CLAMP),
             free_delta_bounces: Some(4),
-            lighting_scale: Some(1),
+            lighting_scale: Some(PREVIEW_LIGHTING_SCALE),
+            smooth: Some(true),
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::Fast,
@@ -128,7 +154,7 @@ pub const PRESETS: [QualityPreset; 4] = [
     },
     QualityPreset {
         name: "interactive",
-        description: "path tracing, 8 samples, paths of up to 6 segments (glass and mirrors free): physically based but noisy",
+        description: "path tracing, 8 samples, paths of up to 6 segments (glass and mirrors free), reflected light smoothed by an edge-aware filter, the lights seen directly kept sharp: physically based, some blur",
         resolution_scale: 1.0,
         settings: RenderOverrides {
             spp: Some(8),
@@ -140,6 +166,7 @@ pub const PRESETS: [QualityPreset; 4] = [
             rr_depth: Some(3),
             clamp_indirect: Some(0.0),
             lighting_scale: Some(1),
+            smooth: Some(true),
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::Default,
@@ -159,6 +186,7 @@ pub const PRESETS: [QualityPreset; 4] = [
             clamp_indirect: Some(0.0),
             free_delta_bounces: Some(0),
             lighting_scale: Some(1),
+            smooth: Some(false),
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::Default,
@@ -178,6 +206,7 @@ pub const PRESETS: [QualityPreset; 4] = [
             clamp_indirect: Some(0.0),
             free_delta_bounces: Some(0),
             lighting_scale: Some(1),
+            smooth: Some(false),
             ..RenderOverrides::NONE
         },
         bvh_quality: BuildQuality::High,
@@ -325,20 +354,39 @@ mod tests {
         // The costly rungs are unbiased: no clamp, Mitsuba's path length.
         for p in &PRESETS[2..] {
             assert_eq!(
-                (set(p).clamp_indirect, set(p).free_delta_bounces, set(p).lighting_scale),
-                (0.0, 0, 1),
+                (
+                    set(p).clamp_indirect,
+                    set(p).free_delta_bounces,
+                    set(p).lighting_scale,
+                    set(p).smooth
+                ),
+                (0.0, 0, 1, false),
                 "{}",
                 p.name
             );
         }
         assert_eq!(PRESETS[PRESETS.len() - 1].resolution_scale, 1.0);
+        // The cheap rungs are one pass, smoothed; denoising turns
+        // `interactive` into the ordinary denoised render.
+        for p in &PRESETS[..2] {
+            assert!(set(p).one_pass(), "{}", p.name);
+            let denoised = RenderSettings {
+                denoise: true,
+                ..set(p)
+            };
+            assert_eq!(denoised.one_pass(), set(p).lighting_scale > 1, "{}", p.name);
+        }
+        assert!(PRESETS[2..].iter().all(|p| !set(p).one_pass()));
         // Each rung sets every bend of the path tracer, so switching rungs
         // (the viewer applies one over another) leaves none of the last
         // one's behind.
         for p in &PRESETS {
             let o = p.settings;
             assert!(
-                o.clamp_indirect.is_some() && o.free_delta_bounces.is_some() && o.lighting_scale.is_some(),
+                o.clamp_indirect.is_some()
+                    && o.free_delta_bounces.is_some()
+                    && o.lighting_scale.is_some()
+                    && o.smooth.is_some(),
                 "{}",
                 p.name
             );

@@ -83,10 +83,11 @@ pub struct RenderOutput {
 /// Renders `settings.spp` samples per pixel of a `settings.width` x
 /// `settings.height` image. `progress` is called with the number of rows
 /// finished (from worker threads, in no particular order). A path-traced
-/// render with [`RenderSettings::lighting_scale`] above 1 is the one-pass
-/// preview of [`crate::preview`] (which reports no progress).
+/// render with [`RenderSettings::lighting_scale`] above 1 or
+/// [`RenderSettings::smooth`] ([`RenderSettings::one_pass`]) is the
+/// one-pass render of [`crate::preview`] (which reports no progress).
 pub fn render(scene: &RenderScene, settings: &RenderSettings, progress: &(dyn Fn(usize) + Sync)) -> RenderOutput {
-    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+    if settings.one_pass() {
         return crate::preview::render_preview(scene, settings);
     }
     let mut film = Film::new(settings.width.max(1), settings.height.max(1));

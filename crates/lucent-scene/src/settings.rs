@@ -144,6 +144,24 @@ pub struct RenderSettings {
     /// height and scaled up, while the lights the camera sees are drawn at
     /// full size (`lucent_render::preview`); 1 renders every pixel.
     pub lighting_scale: u32,
+    /// Path tracer: smooth the reflected light with the one-pass preview's
+    /// edge-aware filter (guided by albedo, normal and depth) at full size,
+    /// the lights the camera sees kept sharp (`lucent_render::preview`).
+    /// A lighting scale above 1 always smooths; with `denoise`, Intel Open
+    /// Image Denoise filters instead, and at a lighting scale of 1 the
+    /// render is then the ordinary denoised one. See
+    /// [`RenderSettings::one_pass`].
+    pub smooth: bool,
+}
+
+impl RenderSettings {
+    /// Whether these settings ask for the one-pass render of
+    /// `lucent_render::preview` rather than a plain set of samples: the
+    /// path tracer with a lighting scale above 1, or with `smooth` and no
+    /// `denoise` (the denoised render replaces the filter).
+    pub fn one_pass(&self) -> bool {
+        self.integrator == Integrator::Path && (self.lighting_scale > 1 || (self.smooth && !self.denoise))
+    }
 }
 
 impl Default for RenderSettings {
@@ -163,6 +181,7 @@ impl Default for RenderSettings {
             clamp_indirect: 0.0,
             free_delta_bounces: 0,
             lighting_scale: 1,
+            smooth: false,
         }
     }
 }
@@ -225,6 +244,9 @@ pub struct RenderOverrides {
     /// 16; 1: every pixel).
     #[serde(default, deserialize_with = "lighting_scale")]
     pub lighting_scale: Option<u32>,
+    /// Smooth the reflected light with the edge-aware filter (path
+    /// tracer).
+    pub smooth: Option<bool>,
 }
 
 impl RenderOverrides {
@@ -244,6 +266,7 @@ impl RenderOverrides {
         clamp_indirect: None,
         free_delta_bounces: None,
         lighting_scale: None,
+        smooth: None,
     };
 
     /// Writes every setting that is `Some` into `settings`.
@@ -268,6 +291,7 @@ impl RenderOverrides {
         set(&mut s.clamp_indirect, self.clamp_indirect);
         set(&mut s.free_delta_bounces, self.free_delta_bounces);
         set(&mut s.lighting_scale, self.lighting_scale);
+        set(&mut s.smooth, self.smooth);
     }
 }
 
@@ -306,6 +330,7 @@ mod tests {
             clamp_indirect: Some(8.0),
             free_delta_bounces: Some(9),
             lighting_scale: Some(10),
+            smooth: Some(true),
         };
         all.apply(&mut s);
         let want = RenderSettings {
@@ -323,7 +348,31 @@ mod tests {
             clamp_indirect: 8.0,
             free_delta_bounces: 9,
             lighting_scale: 10,
+            smooth: true,
         };
         assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
+    }
+
+    #[test]
+    fn one_pass_means_a_reduced_or_smoothed_path_trace() {
+        let path = RenderSettings {
+            integrator: Integrator::Path,
+            ..RenderSettings::default()
+        };
+        let with = |scale: u32, smooth: bool, denoise: bool| RenderSettings {
+            lighting_scale: scale,
+            smooth,
+            denoise,
+            ..path
+        };
+        assert!(!path.one_pass());
+        assert!(with(2, false, false).one_pass() && with(2, true, true).one_pass());
+        assert!(with(1, true, false).one_pass());
+        assert!(!with(1, true, true).one_pass(), "denoising replaces the filter");
+        let whitted = RenderSettings {
+            integrator: Integrator::Whitted,
+            ..with(4, true, false)
+        };
+        assert!(!whitted.one_pass());
     }
 }

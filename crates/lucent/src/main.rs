@@ -152,6 +152,12 @@ struct QualityArgs {
     /// 16).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=16))]
     lighting_scale: Option<u32>,
+    /// Path tracer: smooth the reflected light with an edge-aware filter
+    /// guided by albedo, normal and depth, the lights the camera sees kept
+    /// sharp, in one pass (the interactive preset does); `--smooth=false`
+    /// turns it off. With --denoise, the denoiser filters instead.
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, require_equals = true, default_missing_value = "true")]
+    smooth: Option<bool>,
 }
 
 impl QualityArgs {
@@ -186,6 +192,7 @@ impl QualityArgs {
             clamp_indirect: self.clamp_indirect,
             free_delta_bounces: self.free_delta_bounces,
             lighting_scale: self.lighting_scale,
+            smooth: self.smooth,
             ..RenderOverrides::NONE
         }
     }

@@ -91,7 +91,7 @@ fn explicit_flags_override_the_preset() {
     };
     preview.apply(&mut want);
     assert_eq!(s, want);
-    assert_eq!((s.width, s.height, s.lighting_scale), (320, 180, 1));
+    assert_eq!((s.width, s.height, s.lighting_scale, s.smooth), (640, 360, 4, true));
     // Each flag wins over the preset, whatever the order on the line.
     for args in [
         ["view", "--preset", "preview", "--size", "100x50", "--max-depth", "7"],
@@ -134,6 +134,15 @@ fn explicit_flags_override_the_preset() {
     // No preset: the scene's own settings under the flags.
     let s = scene(&quality_of(&["view", "--max-depth", "2"]));
     assert_eq!((s.width, s.height, s.max_depth, s.spp), (640, 360, 2, 1));
+    // `--smooth` alone turns smoothing on, `--smooth=false` off (over the
+    // interactive preset's), and takes no value from the next word.
+    assert_eq!(quality_of(&["view", "--smooth"]).smooth, Some(true));
+    let s = scene(&quality_of(&["view", "--preset", "interactive", "--smooth=false"]));
+    assert!(!s.smooth && !s.one_pass());
+    assert!(scene(&quality_of(&["view", "--preset", "interactive"])).one_pass());
+    let q = quality_of(&["render", "--smooth", "s.toml", "-o", "x.png"]);
+    assert_eq!(q.smooth, Some(true));
+    assert!(parse(&["view", "--smooth=maybe"]).is_err());
 }
 
 #[test]

@@ -127,7 +127,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let settings = scene.settings;
-    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+    if settings.one_pass() {
         let mode = match (args.farm.part, args.time_budget, args.target_error) {
             (Some(share), _, _) => Some(format!("--part {share}")),
             (_, Some(_), _) => Some("--time-budget".to_owned()),
@@ -135,11 +135,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
             _ => None,
         };
         if let Some(mode) = mode {
+            let (what, undo) = if settings.lighting_scale > 1 {
+                (
+                    format!(
+                        "a lighting scale of {} (--lighting-scale or [render] lighting_scale)",
+                        settings.lighting_scale
+                    ),
+                    "add --lighting-scale 1 (and --smooth=false if the preset smooths)",
+                )
+            } else {
+                (
+                    "smoothing (--smooth, [render] smooth or the interactive preset)".to_owned(),
+                    "add --smooth=false, or --denoise",
+                )
+            };
             bail!(
-                "{mode} with a lighting scale of {} (--lighting-scale or [render] lighting_scale) is refused: that \
-                 preview is one pass whose reflected light is traced at a fraction of the size, not samples \
-                 to refine or share out; add --lighting-scale 1",
-                settings.lighting_scale
+                "{mode} with {what} is refused: that image is one pass whose reflected light is filtered \
+                 as a whole, not samples to refine or share out; {undo}"
             );
         }
     }
@@ -279,6 +291,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
             "path max_depth {}, reflected light at 1/{} size",
             settings.max_depth, settings.lighting_scale
         ),
+        Integrator::Path if settings.one_pass() => {
+            format!("path max_depth {}, reflected light smoothed", settings.max_depth)
+        }
         Integrator::Path => format!("path max_depth {}", settings.max_depth),
     };
     let (what, per_spp) = match refined {
@@ -482,7 +497,7 @@ fn render_image(
         };
         return (plain, None, None, Some(refined));
     }
-    if settings.integrator == Integrator::Path && settings.lighting_scale > 1 {
+    if settings.one_pass() {
         let start = Instant::now();
         let passes = PreviewPasses::render(rs, settings);
         let film = passes.compose(&passes.smoothed());

@@ -19,12 +19,15 @@ fn render(name: &str, flags: &str) -> (String, (u32, u32)) {
 }
 
 #[test]
-fn preview_path_traces_at_half_size_and_whitted_keeps_the_report_model() {
-    // seed.toml is 640x360 at 4 spp; preview halves the size, one sample,
-    // direct light and one bounce.
+fn preview_is_the_one_pass_preview_and_whitted_keeps_the_report_model() {
+    // seed.toml is 640x360 at 4 spp; preview keeps the size, one sample,
+    // direct light and one bounce, its reflected light at a quarter size.
     let (summary, size) = render("preview", "--preset preview");
-    assert_eq!(size, (320, 180));
-    assert!(summary.contains("320x180, 1 spp, path max_depth 3"), "{summary}");
+    assert_eq!(size, (640, 360));
+    assert!(
+        summary.contains("640x360, 1 spp, path max_depth 3, reflected light at 1/4 size"),
+        "{summary}"
+    );
     let (summary, size) = render("whitted", "--preset whitted");
     assert_eq!(size, (320, 180));
     assert!(summary.contains("320x180, 1 spp, whitted gouraud"), "{summary}");
@@ -46,6 +49,38 @@ fn a_lighting_scale_renders_the_one_pass_preview_at_full_size() {
         &[s(&png)],
     );
     assert!(err.contains("--time-budget with a lighting scale of 4"), "{err}");
+}
+
+#[test]
+fn interactive_smooths_in_one_pass_unless_told_otherwise() {
+    let depth = lucent_render::quality::preset("interactive")
+        .unwrap()
+        .settings
+        .max_depth
+        .unwrap();
+    let (summary, size) = render("interactive", "--preset interactive --size 64x36");
+    assert_eq!(size, (64, 36));
+    assert!(
+        summary.contains(&format!(
+            "64x36, 8 spp, path max_depth {depth}, reflected light smoothed"
+        )),
+        "{summary}"
+    );
+    let png = scratch("presets", "interactive-budget").join("x.png");
+    let err = run_fail(
+        1,
+        "render res/scenes/seed.toml --preset interactive --size 64x36 --target-error 0.1 -o",
+        &[s(&png)],
+    );
+    assert!(err.contains("--target-error with smoothing"), "{err}");
+    assert!(err.contains("--smooth=false"), "{err}");
+    // Turned off, it is plain samples again, which a time budget refines.
+    let (summary, _) = render(
+        "interactive-plain",
+        "--preset interactive --size 64x36 --smooth=false --time-budget 0.2s",
+    );
+    assert!(!summary.contains("smoothed"), "{summary}");
+    assert!(summary.contains(&format!("path max_depth {depth}")), "{summary}");
 }
 
 #[test]

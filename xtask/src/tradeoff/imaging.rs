@@ -77,12 +77,19 @@ pub fn upsample(image: &Image, width: u32, height: u32) -> Image {
     Image { width, height, pixels }
 }
 
-/// Mean LDR-FLIP error of `test` against `reference` (same size), both
-/// shown as [`Image::to_srgb8`], at FLIP's default 67 pixels per degree (a
-/// 0.7 m viewing distance from a 0.7 m wide 4K monitor). 0 means
-/// indistinguishable, 1 the largest difference. `None` when the sizes
+/// LDR-FLIP error of `test` against `reference` per pixel, and its mean.
+pub struct FlipMap {
+    /// The mean: 0 means indistinguishable, 1 the largest difference.
+    pub mean: f64,
+    /// The error map in FLIP's magma colours, 8-bit sRGB, row-major.
+    pub magma: Vec<u8>,
+}
+
+/// LDR-FLIP of `test` against `reference` (same size), both shown as
+/// [`Image::to_srgb8`], at FLIP's default 67 pixels per degree (a 0.7 m
+/// viewing distance from a 0.7 m wide 4K monitor). `None` when the sizes
 /// differ or the images are empty.
-pub fn flip_mean(test: &Image, reference: &Image) -> Option<f64> {
+pub fn flip_map(test: &Image, reference: &Image) -> Option<FlipMap> {
     if test.width != reference.width || test.height != reference.height || test.pixels.is_empty() {
         return None;
     }
@@ -93,12 +100,19 @@ pub fn flip_mean(test: &Image, reference: &Image) -> Option<f64> {
     let reference = nv_flip::FlipImageRgb8::with_data(reference.width, reference.height, &b);
     let test = nv_flip::FlipImageRgb8::with_data(test.width, test.height, &a);
     let map = nv_flip::flip(reference, test, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
-    Some(f64::from(nv_flip::FlipPool::from_image(&map).mean()))
+    Some(FlipMap {
+        mean: f64::from(nv_flip::FlipPool::from_image(&map).mean()),
+        magma: map.apply_color_lut(&nv_flip::magma_lut()).to_vec(),
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn flip_mean_of(test: &Image, reference: &Image) -> Option<f64> {
+        flip_map(test, reference).map(|m| m.mean)
+    }
 
     fn ramp(width: u32, height: u32) -> Image {
         let pixels = (0..height)
@@ -155,14 +169,14 @@ mod tests {
             height: 32,
             pixels: (0..32 * 32).map(|i| Vec3::splat((i % 7) as f32 / 7.0)).collect(),
         };
-        assert_eq!(flip_mean(&a, &a), Some(0.0));
+        assert_eq!(flip_mean_of(&a, &a), Some(0.0));
         let shift = |d: f32| Image {
             pixels: a.pixels.iter().map(|p| *p + Vec3::new(d, 0.0, 0.0)).collect(),
             ..a.clone()
         };
-        let small = flip_mean(&shift(0.05), &a).unwrap_or(f64::NAN);
-        let large = flip_mean(&shift(0.4), &a).unwrap_or(f64::NAN);
+        let small = flip_mean_of(&shift(0.05), &a).unwrap_or(f64::NAN);
+        let large = flip_mean_of(&shift(0.4), &a).unwrap_or(f64::NAN);
         assert!(small > 0.0 && large > small && large <= 1.0, "{small} {large}");
-        assert_eq!(flip_mean(&ramp(4, 4), &a), None);
+        assert_eq!(flip_mean_of(&ramp(4, 4), &a), None);
     }
 }

@@ -7,8 +7,8 @@
 //! While the camera moves, the worker renders previews sized to the frame
 //! budget from measured costs ([`CostModel`]); when it holds still, it
 //! refines one film at the preset's resolution pass by pass up to the
-//! sample cap (a one-pass preview, `RenderSettings::lighting_scale` above
-//! 1, is rendered whole instead, as `lucent render` makes it). A new
+//! sample cap (a one-pass image, `RenderSettings::one_pass`: `lighting_scale` above
+//! 1 or `smooth` without denoising, is rendered whole instead, as `lucent render` makes it). A new
 //! request generation cancels a refinement pass in flight and restarts
 //! accumulation; the camera coming to rest cancels a preview in flight (the
 //! full-resolution pass it delays is what the user waits for); a cancelled
@@ -614,7 +614,7 @@ fn denoise_preview(denoiser: &Denoiser, film: Film, aovs: &AovFilm, costs: &mut 
 /// `None` when a new request cancelled it (the still is then dropped).
 /// With `denoising`, the pass also records the guide buffers and, in an
 /// emissive scene, the emission its camera rays find. A one-pass preview
-/// (`RenderSettings::lighting_scale`) is rendered whole instead, its
+/// (`RenderSettings::one_pass`) is rendered whole instead, its
 /// reflected light denoised by `denoiser` when denoising is on.
 fn refine(
     scene: &RenderScene,
@@ -701,17 +701,18 @@ fn first_hit(settings: &RenderSettings) -> RenderSettings {
     }
 }
 
-/// Whether `settings` ask for a one-pass preview
-/// (`RenderSettings::lighting_scale` above 1 with the path tracer).
+/// Whether `settings` ask for a one-pass image
+/// ([`RenderSettings::one_pass`]: `lighting_scale` above 1, or `smooth`
+/// without denoising, with the path tracer).
 fn one_pass(settings: &RenderSettings) -> bool {
-    settings.integrator == Integrator::Path && settings.lighting_scale > 1
+    settings.one_pass()
 }
 
-/// The still image of a one-pass preview (`RenderSettings::lighting_scale`
-/// above 1): rendered whole at `size`, its reflected
+/// The still image of a one-pass render (`RenderSettings::one_pass`):
+/// rendered whole at `size`, its reflected
 /// light denoised when denoising is on (else smoothed), as `lucent render`
-/// and `cargo xtask tradeoff` make it. Not cancellable, but it is the
-/// cheapest image the ladder has. Returns the frame and the image (a
+/// and `cargo xtask tradeoff` make it. Not cancellable, but these are the
+/// ladder's two cheapest rungs. Returns the frame and the image (a
 /// one-sample film, which [`work`] takes as finished).
 fn still_preview(
     scene: &RenderScene,
