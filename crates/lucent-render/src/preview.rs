@@ -40,9 +40,12 @@ use crate::aov::AovFilm;
 use crate::flat::FlatBvh;
 use crate::interaction::SurfaceInteraction;
 use crate::render::PixelSampler;
-use crate::{ExactRgb, Film, PinholeCamera, RayStats, RenderOutput, RenderScene, RenderSettings, render_samples_aov};
+use crate::{
+    ExactRgb, Film, PinholeCamera, RayStats, RenderOutput, RenderScene, RenderSettings, render_samples_aov_cancellable,
+};
 use lucent_geom::{Ray, Vec3};
 use rayon::prelude::*;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// Camera rays per pixel along each axis where a light may be seen (so
@@ -87,6 +90,23 @@ impl PreviewPasses {
     /// reduced pass at [`RenderSettings::lighting_scale`] with its feature
     /// buffers.
     pub fn render(scene: &RenderScene, settings: &RenderSettings) -> PreviewPasses {
+        let never = AtomicBool::new(false);
+        match Self::render_cancellable(scene, settings, &never) {
+            Some(passes) => passes,
+            // ok: `never` is never set, so the render is never cancelled.
+            None => unreachable!("an uncancelled preview render"),
+        }
+    }
+
+    /// [`PreviewPasses::render`], given up as soon as `cancel` is set
+    /// (checked before each row of the path-traced pass, which is nearly
+    /// all of the work): `None` then. The viewer renders its one-pass
+    /// stills this way, so that moving the camera does not wait for one.
+    pub fn render_cancellable(
+        scene: &RenderScene,
+        settings: &RenderSettings,
+        cancel: &AtomicBool,
+    ) -> Option<PreviewPasses> {
         let (width, height) = (settings.width.max(1), settings.height.max(1));
         let scale = settings.lighting_scale.max(1);
         let small = RenderSettings {
@@ -97,7 +117,7 @@ impl PreviewPasses {
         let spp = settings.spp.max(1);
         let mut film = Film::new(small.width, small.height);
         let mut aovs = AovFilm::new(small.width, small.height);
-        let mut stats = render_samples_aov(scene, &small, &mut film, &mut aovs, 0..spp, &|_| {});
+        let mut stats = render_samples_aov_cancellable(scene, &small, &mut film, &mut aovs, 0..spp, cancel)?;
         let mut emission = vec![Vec3::ZERO; width as usize * height as usize];
         let reflected = if scene.features.emissive {
             let camera = PinholeCamera::new(&scene.camera, &scene.render_rig(), width, height);
@@ -115,14 +135,14 @@ impl PreviewPasses {
         } else {
             film
         };
-        PreviewPasses {
+        Some(PreviewPasses {
             width,
             height,
             reflected,
             aovs,
             emission,
             stats,
-        }
+        })
     }
 
     /// [`PreviewPasses::reflected`] smoothed by [`SMOOTHING_PASSES`] passes
@@ -600,5 +620,18 @@ mod tests {
         assert_eq!(reduced(640, 4), 160);
         assert_eq!(reduced(5, 2), 3);
         assert_eq!(reduced(1, 16), 1);
+    }
+
+    #[test]
+    fn a_cancelled_render_gives_nothing_and_an_uncancelled_one_the_same_bytes() {
+        use std::sync::atomic::AtomicBool;
+        let rs = extract(&lucent_scene::fixtures::ball_under_sun()).unwrap_or_else(|e| panic!("{e}"));
+        let s = settings(2);
+        assert!(PreviewPasses::render_cancellable(&rs, &s, &AtomicBool::new(true)).is_none());
+        let kept = PreviewPasses::render_cancellable(&rs, &s, &AtomicBool::new(false));
+        let whole = PreviewPasses::render(&rs, &s);
+        let kept = kept.unwrap_or_else(|| panic!("cancelled without a cancel"));
+        assert!(kept.reflected == whole.reflected && kept.emission == whole.emission);
+        assert_eq!(kept.aovs.n_samples(), whole.aovs.n_samples());
     }
 }

@@ -628,7 +628,10 @@ fn refine(
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (rw, rh) = scaled_size(w, h, r.still_scale);
     if one_pass(&r.settings) {
-        let (frame, film) = still_preview(scene, r, (rw, rh), costs, denoiser);
+        let Some((frame, film)) = still_preview(scene, r, (rw, rh), costs, denoiser, cancel) else {
+            *still = None;
+            return None;
+        };
         // A one-sample film without guide buffers: taken as finished, and
         // never handed to the denoise thread (it denoised its own light).
         *still = Some(Still {
@@ -711,16 +714,19 @@ fn one_pass(settings: &RenderSettings) -> bool {
 /// The still image of a one-pass render (`RenderSettings::one_pass`):
 /// rendered whole at `size`, its reflected
 /// light denoised when denoising is on (else smoothed), as `lucent render`
-/// and `cargo xtask tradeoff` make it. Not cancellable, but these are the
-/// ladder's two cheapest rungs. Returns the frame and the image (a
-/// one-sample film, which [`work`] takes as finished).
+/// and `cargo xtask tradeoff` make it. Returns the frame and the image (a
+/// one-sample film, which [`work`] takes as finished), or `None` when a new
+/// request set `cancel` while it was traced (`interactive`'s 8 samples
+/// take a good part of a second on a large scene, too long to make a
+/// moving camera wait for).
 fn still_preview(
     scene: &RenderScene,
     r: &Request,
     (rw, rh): (u32, u32),
     costs: &mut CostModel,
     denoiser: Option<&Denoiser>,
-) -> (Frame, Film) {
+    cancel: &AtomicBool,
+) -> Option<(Frame, Film)> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     // The sample cap in the one pass.
     let sized = RenderSettings {
@@ -730,7 +736,7 @@ fn still_preview(
         ..r.settings
     };
     let start = Instant::now();
-    let passes = PreviewPasses::render(scene, &sized);
+    let passes = PreviewPasses::render_cancellable(scene, &sized, cancel)?;
     let render_s = start.elapsed().as_secs_f32();
     let (reflected, denoise_s) = match denoiser.filter(|_| r.settings.denoise) {
         Some(d) => {
@@ -761,7 +767,7 @@ fn still_preview(
         denoised: denoise_s.is_some(),
         denoise_follows: false,
     };
-    (frame, still)
+    Some((frame, still))
 }
 
 /// A `width` x `height` window rendered at `scale` window pixels per
