@@ -607,6 +607,14 @@ impl Builder {
                 None => None,
             };
         }
+        // A split costs the traversal cost plus the children's prices,
+        // which are never negative, and never NaN where the node's area is
+        // finite (the children's boxes lie inside it, so no price overflows
+        // into an infinity times zero). So where a leaf costs no more than
+        // a traversal, the sweep would choose the leaf: skip it.
+        if !must_split && leaf_cost <= self.params.traversal_cost && task.bounds.half_area().is_finite() {
+            return None;
+        }
         let binner = Binner::new(&task.centroids, self.params.n_bins.min(count));
         match self.find_sah_split(&task, &binner, bins) {
             Some(s) if s.cost >= leaf_cost && !must_split => None,
