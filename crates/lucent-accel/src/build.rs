@@ -25,7 +25,7 @@
 //! it, so the depth stays below [`MAX_DEPTH`].
 
 use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH, TriMesh};
-use lucent_geom::{Vec3, Vec3A};
+use lucent_geom::{BVec3A, Mat3A, Vec3, Vec3A};
 
 /// The speed-for-quality trade of a build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -640,15 +640,25 @@ impl Builder {
         }
     }
 
-    /// Area x blocks of `n` primitives in `bounds`: 0 for none (whose box
-    /// is empty), as [`Box4::half_area`] gives an empty box.
+    /// Area x blocks of each of three boxes holding `n` primitives, one
+    /// box per lane: 0 for none (whose box is empty), as
+    /// [`Box4::half_area`] gives an empty box. Lane by lane this is
+    /// [`Box4::half_area`]'s arithmetic in the same order, so the prices
+    /// are the same bits as one box at a time.
     #[inline(always)]
-    fn price(&self, bounds: &Box4, n: usize) -> f32 {
-        if n == 0 {
-            return 0.0;
-        }
-        let e = bounds.max - bounds.min;
-        (e.x * e.y + e.y * e.z + e.z * e.x) * self.blocks(n)
+    fn prices(&self, boxes: &[Box4; 3], n: [u32; 3]) -> Vec3A {
+        let [ex, ey, ez] = boxes.map(|b| b.max - b.min);
+        // Lane `axis` of `x`, `y`, `z` is the extent of box `axis`.
+        let m = Mat3A::from_cols(ex, ey, ez).transpose();
+        let (x, y, z) = (m.x_axis, m.y_axis, m.z_axis);
+        let area = x * y + y * z + z * x;
+        let blocks = Vec3A::from_array(match self.block_shift {
+            // `blocks`, in 64 bits so that the sum cannot overflow.
+            Some(shift) => n.map(|k| ((u64::from(k) + u64::from(self.params.prim_block - 1)) >> shift) as u32 as f32),
+            None => n.map(|k| k.div_ceil(self.params.prim_block) as f32),
+        });
+        // An empty side (whose box is inverted) is priced 0.
+        Vec3A::select(blocks.cmpgt(Vec3A::ZERO), area * blocks, Vec3A::ZERO)
     }
 
     /// Cheapest SAH split, or `None` when the centroids do not spread. Bins
@@ -675,25 +685,56 @@ impl Builder {
         } else {
             bins.add_all(task.prims, binner);
         }
-        let mut best: Option<(usize, usize, f32)> = None;
-        for axis in (0..3).filter(|&a| spread[a]) {
-            let (boxes, counts) = (&bins.boxes[axis], &bins.counts[axis]);
-            // Right-to-left sweep: area x blocks of the right side per split.
-            let mut right_cost = [0.0f32; MAX_BINS];
-            let (mut acc, mut n) = (Box4::EMPTY, 0);
-            for i in (1..n_bins).rev() {
-                acc = acc.union(boxes[i]);
-                n += counts[i] as usize;
-                right_cost[i] = self.price(&acc, n);
+        // Both sweeps price the three axes at once, one axis per lane.
+        let t = Vec3A::splat(self.params.traversal_cost);
+        let inv_area = Vec3A::splat(inv_area);
+        let (boxes, counts) = (&bins.boxes, &bins.counts);
+        // Right to left: area x blocks of the right side of each split.
+        let mut right_cost = [Vec3A::ZERO; MAX_BINS];
+        let (mut acc, mut n) = ([Box4::EMPTY; 3], [0u32; 3]);
+        for i in (1..n_bins).rev() {
+            for axis in 0..3 {
+                acc[axis] = acc[axis].union(boxes[axis][i]);
+                n[axis] += counts[axis][i];
             }
-            let (mut acc, mut n) = (Box4::EMPTY, 0);
-            for i in 1..n_bins {
-                acc = acc.union(boxes[i - 1]);
-                n += counts[i - 1] as usize;
-                let left_cost = self.price(&acc, n);
-                let cost = self.params.traversal_cost + (left_cost + right_cost[i]) * inv_area;
-                if best.is_none_or(|(_, _, c)| cost < c) {
-                    best = Some((axis, i, cost));
+            right_cost[i] = self.prices(&acc, n);
+        }
+        // Left to right: the cost of each split, and per axis the first
+        // cheapest one.
+        let mut cost = [Vec3A::ZERO; MAX_BINS];
+        let (mut acc, mut n) = ([Box4::EMPTY; 3], [0u32; 3]);
+        let (mut least, mut least_bin) = (Vec3A::INFINITY, Vec3A::ZERO);
+        let mut nan = BVec3A::FALSE;
+        for i in 1..n_bins {
+            for axis in 0..3 {
+                acc[axis] = acc[axis].union(boxes[axis][i - 1]);
+                n[axis] += counts[axis][i - 1];
+            }
+            let c = t + (self.prices(&acc, n) + right_cost[i]) * inv_area;
+            cost[i] = c;
+            let first = i == 1;
+            let better = c.cmplt(least) | BVec3A::splat(first);
+            least = Vec3A::select(better, c, least);
+            least_bin = Vec3A::select(better, Vec3A::splat(i as f32), least_bin);
+            nan |= c.is_nan_mask();
+        }
+        // The first cheapest split over the axes in order. A NaN cost (from
+        // infinite areas) breaks the per-axis minimum's order: then the
+        // costs are taken one by one, as a scalar sweep would.
+        let mut best: Option<(usize, usize, f32)> = None;
+        let (least, least_bin, nan) = (least.to_array(), least_bin.to_array(), nan.bitmask());
+        for axis in (0..3).filter(|&a| spread[a]) {
+            if nan & (1 << axis) == 0 {
+                let (c, i) = (least[axis], least_bin[axis] as usize);
+                if best.is_none_or(|(_, _, b)| c < b) {
+                    best = Some((axis, i, c));
+                }
+                continue;
+            }
+            for (i, c) in cost.iter().enumerate().take(n_bins).skip(1) {
+                let c = c[axis];
+                if best.is_none_or(|(_, _, b)| c < b) {
+                    best = Some((axis, i, c));
                 }
             }
         }
