@@ -25,7 +25,7 @@
 //! it, so the depth stays below [`MAX_DEPTH`].
 
 use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH, TriMesh};
-use lucent_geom::{BVec3A, Mat3A, Vec3, Vec3A};
+use lucent_geom::{Mat3A, Vec3, Vec3A};
 
 /// The speed-for-quality trade of a build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -345,15 +345,16 @@ impl Binner {
     /// The bins of centroid `c` along the three axes: its
     /// [`Binner::position`], truncated. Adding 2^23 rounds the position to
     /// the nearest integer, which then sits in the sum's low mantissa bits;
-    /// where that rounded up, one less is the truncation. (This is four
-    /// vector instructions where a float-to-integer cast of each lane is a
-    /// dozen scalar ones with range checks.)
+    /// where that rounded up, adding -1 (exact at this magnitude) gives
+    /// the truncation. (This is five vector instructions where a
+    /// float-to-integer cast of each lane is a dozen scalar ones with range
+    /// checks.)
     #[inline(always)]
     fn bins(&self, c: Vec3A) -> [usize; 3] {
         const ROUND: Vec3A = Vec3A::splat(8_388_608.0);
         let x = self.position(c);
         let t = x + ROUND;
-        let t = Vec3A::select((t - ROUND).cmpgt(x), t - Vec3A::ONE, t);
+        let t = t + Vec3A::select((t - ROUND).cmpgt(x), Vec3A::NEG_ONE, Vec3A::ZERO);
         t.to_array().map(|v| v.to_bits() as usize & (MAX_BINS - 1))
     }
 }
@@ -703,17 +704,22 @@ impl Builder {
         // cheapest one.
         let mut cost = [Vec3A::ZERO; MAX_BINS];
         let (mut acc, mut n) = ([Box4::EMPTY; 3], [0u32; 3]);
-        let (mut least, mut least_bin) = (Vec3A::INFINITY, Vec3A::ZERO);
-        let mut nan = BVec3A::FALSE;
-        for i in 1..n_bins {
+        let mut split_cost = |i: usize| {
             for axis in 0..3 {
                 acc[axis] = acc[axis].union(boxes[axis][i - 1]);
                 n[axis] += counts[axis][i - 1];
             }
             let c = t + (self.prices(&acc, n) + right_cost[i]) * inv_area;
             cost[i] = c;
-            let first = i == 1;
-            let better = c.cmplt(least) | BVec3A::splat(first);
+            c
+        };
+        // `n_bins` is at least 2, so there is a first split.
+        let mut least = split_cost(1);
+        let mut least_bin = Vec3A::ONE;
+        let mut nan = least.is_nan_mask();
+        for i in 2..n_bins {
+            let c = split_cost(i);
+            let better = c.cmplt(least);
             least = Vec3A::select(better, c, least);
             least_bin = Vec3A::select(better, Vec3A::splat(i as f32), least_bin);
             nan |= c.is_nan_mask();
