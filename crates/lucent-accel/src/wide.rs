@@ -210,6 +210,10 @@ impl WideBvh {
         if bvh.nodes.is_empty() {
             return wide;
         }
+        // Each wide node takes at least one binary interior node (the root
+        // a leaf's place), so this is room enough; the pages never written
+        // cost nothing, and the excess is given back at the end.
+        wide.nodes.reserve_exact(bvh.nodes.len().div_ceil(2));
         wide.nodes.push(EMPTY_NODE);
         wide.set_simd(true);
         if bvh.nodes[0].is_leaf() {
@@ -218,56 +222,68 @@ impl WideBvh {
         } else {
             wide.collapse(bvh, 0, 0, 1, &mut leaf);
         }
+        wide.nodes.shrink_to_fit();
         wide
     }
 
     /// Fills wide node `at` from binary interior node `idx`.
     fn collapse(&mut self, bvh: &Bvh, idx: usize, at: usize, depth: usize, leaf: &mut impl FnMut(u32, u32) -> u32) {
-        let area = |k: usize| bvh.nodes[k].aabb().half_area();
-        let first = bvh.nodes[idx].first as usize;
-        let mut kids = [0usize; W];
-        kids[..2].copy_from_slice(&[first, first + 1]);
+        let nodes = &bvh.nodes;
+        let area = |k: usize| nodes[k].aabb().half_area();
+        // The children so far, each with its box's area.
+        let mut kids = [(0.0f32, 0usize); W];
+        let first = nodes[idx].first as usize;
+        kids[0] = (area(first), first);
+        kids[1] = (area(first + 1), first + 1);
         let mut n = 2;
-        // Open the largest interior child until there are eight.
+        // Open the largest interior child until there are eight (the last
+        // of equally large ones, as `max_by` picks).
         while n < W {
             let open = (0..n)
-                .filter(|&i| !bvh.nodes[kids[i]].is_leaf())
-                .max_by(|&a, &b| area(kids[a]).total_cmp(&area(kids[b])));
+                .filter(|&i| !nodes[kids[i].1].is_leaf())
+                .max_by(|&a, &b| kids[a].0.total_cmp(&kids[b].0));
             let Some(i) = open else { break };
-            let f = bvh.nodes[kids[i]].first as usize;
-            kids[i] = f;
-            kids[n] = f + 1;
+            let f = nodes[kids[i].1].first as usize;
+            kids[i] = (area(f), f);
+            kids[n] = (area(f + 1), f + 1);
             n += 1;
         }
-        // Smallest box first: any hit goes to the highest lane first, and a
-        // bigger box is likelier to hold an occluder (the SAH's premise).
+        // Smallest box first (a stable sort): any hit goes to the highest
+        // lane first, and a bigger box is likelier to hold an occluder (the
+        // SAH's premise).
         let kids = &mut kids[..n];
-        kids.sort_by(|&a, &b| area(a).total_cmp(&area(b)));
-        self.fill(bvh, at, kids, depth, leaf);
+        kids.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut order = [0usize; W];
+        for (o, &(_, k)) in order.iter_mut().zip(kids.iter()) {
+            *o = k;
+        }
+        self.fill(bvh, at, &order[..n], depth, leaf);
     }
 
-    /// Fills wide node `at` (at interior level `depth`, root 1) with `kids`.
+    /// Fills wide node `at` (at interior level `depth`, root 1, and still
+    /// empty) with `kids`.
     fn fill(&mut self, bvh: &Bvh, at: usize, kids: &[usize], depth: usize, leaf: &mut impl FnMut(u32, u32) -> u32) {
         self.depth = self.depth.max(depth);
-        let mut node = EMPTY_NODE;
         let mut interior = [(0usize, 0usize); W];
         let mut n_interior = 0;
         for (lane, &k) in kids.iter().enumerate() {
             let b = &bvh.nodes[k];
+            let child = if b.is_leaf() {
+                leaf(b.first, b.count)
+            } else {
+                let child_at = self.nodes.len();
+                interior[n_interior] = (child_at, k);
+                n_interior += 1;
+                self.nodes.push(EMPTY_NODE);
+                child_at as u32
+            };
+            let node = &mut self.nodes[at];
             for axis in 0..3 {
                 node.bounds[0][axis][lane] = b.min[axis];
                 node.bounds[1][axis][lane] = b.max[axis];
             }
-            if b.is_leaf() {
-                node.child[lane] = leaf(b.first, b.count);
-            } else {
-                node.child[lane] = self.nodes.len() as u32;
-                interior[n_interior] = (self.nodes.len(), k);
-                n_interior += 1;
-                self.nodes.push(EMPTY_NODE);
-            }
+            node.child[lane] = child;
         }
-        self.nodes[at] = node;
         for &(child_at, k) in &interior[..n_interior] {
             self.collapse(bvh, k, child_at, depth + 1, leaf);
         }
