@@ -119,7 +119,7 @@ const CHUNK: usize = 8192;
 
 /// Runs `a` and `b`, in parallel with the feature.
 #[cfg(feature = "parallel")]
-fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
+pub(crate) fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA + Send,
     B: FnOnce() -> RB + Send,
@@ -130,7 +130,7 @@ where
 }
 
 #[cfg(not(feature = "parallel"))]
-fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
+pub(crate) fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA,
     B: FnOnce() -> RB,
@@ -150,21 +150,22 @@ fn map_chunks<T, R>(items: &[T], f: impl Fn(&[T]) -> R) -> Vec<R> {
     items.chunks(CHUNK).map(f).collect()
 }
 
-/// `f(i)` for `i` in `0..n`, in order (in parallel with the feature).
+/// `f(i)` for `i` in `0..n`, in order (in parallel with the feature, in
+/// runs of at least `min_len`).
 #[cfg(feature = "parallel")]
-fn map_indices<R: Send>(n: usize, f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
+pub(crate) fn map_indices<R: Send>(n: usize, min_len: usize, f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
     use rayon::prelude::*;
     let mut out = Vec::new();
     (0..n)
         .into_par_iter()
-        .with_min_len(CHUNK)
+        .with_min_len(min_len)
         .map(f)
         .collect_into_vec(&mut out);
     out
 }
 
 #[cfg(not(feature = "parallel"))]
-fn map_indices<R>(n: usize, f: impl Fn(usize) -> R) -> Vec<R> {
+pub(crate) fn map_indices<R>(n: usize, _min_len: usize, f: impl Fn(usize) -> R) -> Vec<R> {
     (0..n).map(f).collect()
 }
 
@@ -492,7 +493,7 @@ impl Bvh {
     /// Builds a BVH over a mesh's triangles (as [`Bvh::build`] over their
     /// boxes, without the intermediate array).
     pub(crate) fn build_triangles(mesh: &TriMesh, params: &BuildParams) -> Bvh {
-        let prims = map_indices(mesh.n_triangles(), |t| Box4::of_triangle(mesh.triangle(t)));
+        let prims = map_indices(mesh.n_triangles(), CHUNK, |t| Box4::of_triangle(mesh.triangle(t)));
         if prims.iter().all(Box4::is_valid) {
             let ids = (0..prims.len() as u32).collect();
             build_prims(prims, ids, params)

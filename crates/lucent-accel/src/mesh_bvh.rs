@@ -275,31 +275,44 @@ impl MeshBvh {
     /// order.
     pub fn build(mesh: &TriMesh, params: &BuildParams) -> Self {
         let bvh = Bvh::build_triangles(mesh, params);
-        let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 6 + 1);
-        // Leaves hold at most 16 primitives (two packs), well within what
-        // a leaf entry can address.
-        let wide = WideBvh::from_binary(&bvh, |first, count| {
-            let start = packs.len();
+        // The collapse names each leaf's packs (runs of up to eight slots
+        // of the primitive order) while the tree's statistics are summed
+        // beside it; then the packs are filled, in parallel with the
+        // feature (each from its own slots, so the result is the same).
+        let ((wide, runs), stats) = crate::build::join(
+            || {
+                let mut runs: Vec<(u32, u32)> = Vec::with_capacity(bvh.prim_indices.len() / 6 + 1);
+                // Leaves hold at most 16 primitives (two packs), well
+                // within what a leaf entry can address.
+                let wide = WideBvh::from_binary(&bvh, |first, count| {
+                    let start = runs.len();
+                    let end = first + count;
+                    runs.extend((first..end).step_by(LANES).map(|f| (f, (end - f).min(LANES as u32))));
+                    leaf_entry(start, runs.len() - start)
+                });
+                (wide, runs)
+            },
+            || bvh.stats(),
+        );
+        let packs = crate::build::map_indices(runs.len(), 1024, |p| {
+            let (first, count) = runs[p];
+            let mut pack = EMPTY_PACK;
             let slots = &bvh.prim_indices[first as usize..(first + count) as usize];
-            // Filled in place (a pack is 320 bytes: no copies).
-            packs.resize(start + slots.len().div_ceil(LANES), EMPTY_PACK);
-            for (pack, chunk) in packs[start..].iter_mut().zip(slots.chunks(LANES)) {
-                for (lane, &prim) in chunk.iter().enumerate() {
-                    for (vtx, p) in mesh.triangle(prim as usize).into_iter().enumerate() {
-                        for (axis, x) in p.to_array().into_iter().enumerate() {
-                            pack.v[vtx][axis][lane] = x;
-                        }
+            for (lane, &prim) in slots.iter().enumerate() {
+                for (vtx, p) in mesh.triangle(prim as usize).into_iter().enumerate() {
+                    for (axis, x) in p.to_array().into_iter().enumerate() {
+                        pack.v[vtx][axis][lane] = x;
                     }
-                    pack.prim[lane] = prim;
                 }
+                pack.prim[lane] = prim;
             }
-            leaf_entry(start, packs.len() - start)
+            pack
         });
         Self {
             wide,
             packs,
             n_tris: bvh.prim_indices.len(),
-            stats: bvh.stats(),
+            stats,
             bounds: bvh.bounds(),
             test: TriangleTest::default(),
             vector: true,
