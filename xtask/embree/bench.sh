@@ -5,6 +5,7 @@
 #   env: PEER=/tmp/embree-peer  BASELINE=path/to/an/older/lucent-bench (optional;
 #        a 'lucent' from before lucent-bench: BASELINE_CMD="bench rays")
 #        MESHES="bun_zipper dragon"  SETS="close primary random"  REPS=5
+#        ASSETS=$ROOT/../shared/assets (the meshes; set it in a worktree elsewhere)
 #
 # Needs the ray and hit files made by xtask/embree/compare.sh. Each round runs,
 # for every mesh and ray set, Embree (closest + any hit, 1 and 2 threads, BVH
@@ -21,7 +22,7 @@ PEER=${PEER:-/tmp/embree-peer}
 REPS=${REPS:-5}
 MESHES=${MESHES:-"bun_zipper dragon"}
 SETS=${SETS:-"close primary random"}
-ASSETS=$ROOT/../shared/assets
+ASSETS=${ASSETS:-$ROOT/../shared/assets}
 declare -A MESH=([bun_zipper]=$ASSETS/stanford-bunny/bun_zipper.ply [dragon]=$ASSETS/stanford-dragon-100k/dragon.ply)
 cargo build --release -q -p lucent-bench --manifest-path "$ROOT/Cargo.toml"
 LUCENT=$ROOT/target/release/lucent-bench

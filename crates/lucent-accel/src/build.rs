@@ -25,7 +25,7 @@
 //! it, so the depth stays below [`MAX_DEPTH`].
 
 use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH, TriMesh};
-use lucent_geom::{Vec3, Vec3A};
+use lucent_geom::{Mat3A, Vec3, Vec3A};
 
 /// The speed-for-quality trade of a build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -119,7 +119,7 @@ const CHUNK: usize = 8192;
 
 /// Runs `a` and `b`, in parallel with the feature.
 #[cfg(feature = "parallel")]
-fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
+pub(crate) fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA + Send,
     B: FnOnce() -> RB + Send,
@@ -130,7 +130,7 @@ where
 }
 
 #[cfg(not(feature = "parallel"))]
-fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
+pub(crate) fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA,
     B: FnOnce() -> RB,
@@ -150,21 +150,22 @@ fn map_chunks<T, R>(items: &[T], f: impl Fn(&[T]) -> R) -> Vec<R> {
     items.chunks(CHUNK).map(f).collect()
 }
 
-/// `f(i)` for `i` in `0..n`, in order (in parallel with the feature).
+/// `f(i)` for `i` in `0..n`, in order (in parallel with the feature, in
+/// runs of at least `min_len`).
 #[cfg(feature = "parallel")]
-fn map_indices<R: Send>(n: usize, f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
+pub(crate) fn map_indices<R: Send>(n: usize, min_len: usize, f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
     use rayon::prelude::*;
     let mut out = Vec::new();
     (0..n)
         .into_par_iter()
-        .with_min_len(CHUNK)
+        .with_min_len(min_len)
         .map(f)
         .collect_into_vec(&mut out);
     out
 }
 
 #[cfg(not(feature = "parallel"))]
-fn map_indices<R>(n: usize, f: impl Fn(usize) -> R) -> Vec<R> {
+pub(crate) fn map_indices<R>(n: usize, _min_len: usize, f: impl Fn(usize) -> R) -> Vec<R> {
     (0..n).map(f).collect()
 }
 
@@ -345,15 +346,16 @@ impl Binner {
     /// The bins of centroid `c` along the three axes: its
     /// [`Binner::position`], truncated. Adding 2^23 rounds the position to
     /// the nearest integer, which then sits in the sum's low mantissa bits;
-    /// where that rounded up, one less is the truncation. (This is four
-    /// vector instructions where a float-to-integer cast of each lane is a
-    /// dozen scalar ones with range checks.)
+    /// where that rounded up, adding -1 (exact at this magnitude) gives
+    /// the truncation. (This is five vector instructions where a
+    /// float-to-integer cast of each lane is a dozen scalar ones with range
+    /// checks.)
     #[inline(always)]
     fn bins(&self, c: Vec3A) -> [usize; 3] {
         const ROUND: Vec3A = Vec3A::splat(8_388_608.0);
         let x = self.position(c);
         let t = x + ROUND;
-        let t = Vec3A::select((t - ROUND).cmpgt(x), t - Vec3A::ONE, t);
+        let t = t + Vec3A::select((t - ROUND).cmpgt(x), Vec3A::NEG_ONE, Vec3A::ZERO);
         t.to_array().map(|v| v.to_bits() as usize & (MAX_BINS - 1))
     }
 }
@@ -491,7 +493,7 @@ impl Bvh {
     /// Builds a BVH over a mesh's triangles (as [`Bvh::build`] over their
     /// boxes, without the intermediate array).
     pub(crate) fn build_triangles(mesh: &TriMesh, params: &BuildParams) -> Bvh {
-        let prims = map_indices(mesh.n_triangles(), |t| Box4::of_triangle(mesh.triangle(t)));
+        let prims = map_indices(mesh.n_triangles(), CHUNK, |t| Box4::of_triangle(mesh.triangle(t)));
         if prims.iter().all(Box4::is_valid) {
             let ids = (0..prims.len() as u32).collect();
             build_prims(prims, ids, params)
@@ -607,6 +609,14 @@ impl Builder {
                 None => None,
             };
         }
+        // A split costs the traversal cost plus the children's prices,
+        // which are never negative, and never NaN where the node's area is
+        // finite (the children's boxes lie inside it, so no price overflows
+        // into an infinity times zero). So where a leaf costs no more than
+        // a traversal, the sweep would choose the leaf: skip it.
+        if !must_split && leaf_cost <= self.params.traversal_cost && task.bounds.half_area().is_finite() {
+            return None;
+        }
         let binner = Binner::new(&task.centroids, self.params.n_bins.min(count));
         match self.find_sah_split(&task, &binner, bins) {
             Some(s) if s.cost >= leaf_cost && !must_split => None,
@@ -632,15 +642,25 @@ impl Builder {
         }
     }
 
-    /// Area x blocks of `n` primitives in `bounds`: 0 for none (whose box
-    /// is empty), as [`Box4::half_area`] gives an empty box.
+    /// Area x blocks of each of three boxes holding `n` primitives, one
+    /// box per lane: 0 for none (whose box is empty), as
+    /// [`Box4::half_area`] gives an empty box. Lane by lane this is
+    /// [`Box4::half_area`]'s arithmetic in the same order, so the prices
+    /// are the same bits as one box at a time.
     #[inline(always)]
-    fn price(&self, bounds: &Box4, n: usize) -> f32 {
-        if n == 0 {
-            return 0.0;
-        }
-        let e = bounds.max - bounds.min;
-        (e.x * e.y + e.y * e.z + e.z * e.x) * self.blocks(n)
+    fn prices(&self, boxes: &[Box4; 3], n: [u32; 3]) -> Vec3A {
+        let [ex, ey, ez] = boxes.map(|b| b.max - b.min);
+        // Lane `axis` of `x`, `y`, `z` is the extent of box `axis`.
+        let m = Mat3A::from_cols(ex, ey, ez).transpose();
+        let (x, y, z) = (m.x_axis, m.y_axis, m.z_axis);
+        let area = x * y + y * z + z * x;
+        let blocks = Vec3A::from_array(match self.block_shift {
+            // `blocks`, in 64 bits so that the sum cannot overflow.
+            Some(shift) => n.map(|k| ((u64::from(k) + u64::from(self.params.prim_block - 1)) >> shift) as u32 as f32),
+            None => n.map(|k| k.div_ceil(self.params.prim_block) as f32),
+        });
+        // An empty side (whose box is inverted) is priced 0.
+        Vec3A::select(blocks.cmpgt(Vec3A::ZERO), area * blocks, Vec3A::ZERO)
     }
 
     /// Cheapest SAH split, or `None` when the centroids do not spread. Bins
@@ -667,25 +687,61 @@ impl Builder {
         } else {
             bins.add_all(task.prims, binner);
         }
-        let mut best: Option<(usize, usize, f32)> = None;
-        for axis in (0..3).filter(|&a| spread[a]) {
-            let (boxes, counts) = (&bins.boxes[axis], &bins.counts[axis]);
-            // Right-to-left sweep: area x blocks of the right side per split.
-            let mut right_cost = [0.0f32; MAX_BINS];
-            let (mut acc, mut n) = (Box4::EMPTY, 0);
-            for i in (1..n_bins).rev() {
-                acc = acc.union(boxes[i]);
-                n += counts[i] as usize;
-                right_cost[i] = self.price(&acc, n);
+        // Both sweeps price the three axes at once, one axis per lane.
+        let t = Vec3A::splat(self.params.traversal_cost);
+        let inv_area = Vec3A::splat(inv_area);
+        let (boxes, counts) = (&bins.boxes, &bins.counts);
+        // Right to left: area x blocks of the right side of each split.
+        let mut right_cost = [Vec3A::ZERO; MAX_BINS];
+        let (mut acc, mut n) = ([Box4::EMPTY; 3], [0u32; 3]);
+        for i in (1..n_bins).rev() {
+            for axis in 0..3 {
+                acc[axis] = acc[axis].union(boxes[axis][i]);
+                n[axis] += counts[axis][i];
             }
-            let (mut acc, mut n) = (Box4::EMPTY, 0);
-            for i in 1..n_bins {
-                acc = acc.union(boxes[i - 1]);
-                n += counts[i - 1] as usize;
-                let left_cost = self.price(&acc, n);
-                let cost = self.params.traversal_cost + (left_cost + right_cost[i]) * inv_area;
-                if best.is_none_or(|(_, _, c)| cost < c) {
-                    best = Some((axis, i, cost));
+            right_cost[i] = self.prices(&acc, n);
+        }
+        // Left to right: the cost of each split, and per axis the first
+        // cheapest one.
+        let mut cost = [Vec3A::ZERO; MAX_BINS];
+        let (mut acc, mut n) = ([Box4::EMPTY; 3], [0u32; 3]);
+        let mut split_cost = |i: usize| {
+            for axis in 0..3 {
+                acc[axis] = acc[axis].union(boxes[axis][i - 1]);
+                n[axis] += counts[axis][i - 1];
+            }
+            let c = t + (self.prices(&acc, n) + right_cost[i]) * inv_area;
+            cost[i] = c;
+            c
+        };
+        // `n_bins` is at least 2, so there is a first split.
+        let mut least = split_cost(1);
+        let mut least_bin = Vec3A::ONE;
+        let mut nan = least.is_nan_mask();
+        for i in 2..n_bins {
+            let c = split_cost(i);
+            let better = c.cmplt(least);
+            least = Vec3A::select(better, c, least);
+            least_bin = Vec3A::select(better, Vec3A::splat(i as f32), least_bin);
+            nan |= c.is_nan_mask();
+        }
+        // The first cheapest split over the axes in order. A NaN cost (from
+        // infinite areas) breaks the per-axis minimum's order: then the
+        // costs are taken one by one, as a scalar sweep would.
+        let mut best: Option<(usize, usize, f32)> = None;
+        let (least, least_bin, nan) = (least.to_array(), least_bin.to_array(), nan.bitmask());
+        for axis in (0..3).filter(|&a| spread[a]) {
+            if nan & (1 << axis) == 0 {
+                let (c, i) = (least[axis], least_bin[axis] as usize);
+                if best.is_none_or(|(_, _, b)| c < b) {
+                    best = Some((axis, i, c));
+                }
+                continue;
+            }
+            for (i, c) in cost.iter().enumerate().take(n_bins).skip(1) {
+                let c = c[axis];
+                if best.is_none_or(|(_, _, b)| c < b) {
+                    best = Some((axis, i, c));
                 }
             }
         }

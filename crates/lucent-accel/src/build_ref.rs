@@ -400,6 +400,22 @@ mod tests {
         assert_same_tree(&spread, "exponentially spread");
         let huge = vec![Aabb::new(Vec3::splat(-f32::MAX), Vec3::splat(f32::MAX)); 3];
         assert_same_tree(&huge, "largest finite");
+        // Spread centroids in a node of infinite area: the sides holding
+        // the wide box cost NaN (infinity times zero), the others do not.
+        let mut wide_one: Vec<Aabb> = (0..40)
+            .map(|i| {
+                let c = Vec3::new(i as f32, (i % 7) as f32, (i % 3) as f32);
+                Aabb::new(c, c + Vec3::ONE)
+            })
+            .collect();
+        wide_one.insert(
+            17,
+            Aabb::new(
+                Vec3::new(20.0, -f32::MAX, -f32::MAX),
+                Vec3::new(21.0, f32::MAX, f32::MAX),
+            ),
+        );
+        assert_same_tree(&wide_one, "infinite area, spread centroids");
         let mut mixed = spread;
         mixed.push(Aabb {
             min: Vec3::splat(f32::NAN),

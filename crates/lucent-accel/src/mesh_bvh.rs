@@ -1,6 +1,6 @@
 //! A BVH over one triangle mesh (the bottom level).
 
-use crate::wide::{BoxTest, Leaves, Portable, Query, Tally, WideBvh, leaf_entry};
+use crate::wide::{BoxTest, Leaves, Portable, Query, Tally, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{
     PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, lane_triangle, plane_distance,
@@ -275,31 +275,35 @@ impl MeshBvh {
     /// order.
     pub fn build(mesh: &TriMesh, params: &BuildParams) -> Self {
         let bvh = Bvh::build_triangles(mesh, params);
-        let mut packs = Vec::with_capacity(bvh.prim_indices.len() / 6 + 1);
-        // Leaves hold at most 16 primitives (two packs), well within what
-        // a leaf entry can address.
-        let wide = WideBvh::from_binary(&bvh, |first, count| {
-            let start = packs.len();
+        // The collapse names each leaf's packs (runs of up to eight slots
+        // of the primitive order) while the tree's statistics are summed
+        // beside it; then the packs are filled, in parallel with the
+        // feature (each from its own slots, so the result is the same).
+        let ((wide, runs), stats) = crate::build::join(
+            // Leaves hold at most 16 primitives (two packs), well within
+            // what a leaf entry can address.
+            || WideBvh::from_binary_runs(&bvh, LANES as u32),
+            || bvh.stats(),
+        );
+        let packs = crate::build::map_indices(runs.len(), 1024, |p| {
+            let (first, count) = runs[p];
+            let mut pack = EMPTY_PACK;
             let slots = &bvh.prim_indices[first as usize..(first + count) as usize];
-            for chunk in slots.chunks(LANES) {
-                let mut pack = EMPTY_PACK;
-                for (lane, &prim) in chunk.iter().enumerate() {
-                    for (vtx, p) in mesh.triangle(prim as usize).into_iter().enumerate() {
-                        for (axis, x) in p.to_array().into_iter().enumerate() {
-                            pack.v[vtx][axis][lane] = x;
-                        }
+            for (lane, &prim) in slots.iter().enumerate() {
+                for (vtx, p) in mesh.triangle(prim as usize).into_iter().enumerate() {
+                    for (axis, x) in p.to_array().into_iter().enumerate() {
+                        pack.v[vtx][axis][lane] = x;
                     }
-                    pack.prim[lane] = prim;
                 }
-                packs.push(pack);
+                pack.prim[lane] = prim;
             }
-            leaf_entry(start, packs.len() - start)
+            pack
         });
         Self {
             wide,
             packs,
             n_tris: bvh.prim_indices.len(),
-            stats: bvh.stats(),
+            stats,
             bounds: bvh.bounds(),
             test: TriangleTest::default(),
             vector: true,
@@ -798,6 +802,33 @@ pub(crate) mod tests {
             if let (Some(g), Some(b)) = (got, best) {
                 // The reported distance is the f64-refined one.
                 assert!((g.t - b.0).abs() <= 1e-2 * b.0.max(1.0), "{} {}", g.t, b.0);
+            }
+        }
+    }
+
+    /// Collapsing the root's subtrees in parallel and joining them gives
+    /// the nodes, depth and pack runs of the one-piece collapse, for every
+    /// parameter set (whose leaves differ in size) and for trees whose
+    /// root has leaf children.
+    #[test]
+    fn parallel_collapse_equals_the_sequential_one() {
+        let soup = random_soup(20_000, 3);
+        let mut positions = shapes::icosphere(4).positions().to_vec();
+        let offset = positions.len() as u32;
+        positions.extend_from_slice(soup.positions());
+        let mut indices = shapes::icosphere(4).indices().to_vec();
+        indices.extend(soup.indices().iter().map(|t| t.map(|i| i + offset)));
+        let big = TriMesh::new(positions, indices).unwrap_or_default();
+        for mesh in [&big, &random_soup(40, 1), &random_soup(3, 2)] {
+            for params in all_params() {
+                let bvh = Bvh::build_triangles(mesh, &params);
+                for run in [1, 3, LANES as u32] {
+                    let (one, one_runs) = WideBvh::runs_from(&bvh, run, false);
+                    let (par, par_runs) = WideBvh::runs_from(&bvh, run, true);
+                    assert!(one.nodes == par.nodes, "{params:?}, runs of {run}: other nodes");
+                    assert_eq!(one.depth, par.depth);
+                    assert_eq!(one_runs, par_runs, "{params:?}, runs of {run}");
+                }
             }
         }
     }

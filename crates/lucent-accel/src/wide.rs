@@ -30,6 +30,9 @@ use lucent_geom::Ray;
 
 /// Children per node.
 pub(crate) const W: usize = 8;
+/// Binary trees of at least this many nodes are collapsed in parallel
+/// below the root (with the `parallel` feature).
+const PARALLEL_NODES: usize = 8192;
 /// Marks a child entry as a leaf: `LEAF_BIT | first_pack << 2 | (packs - 1)`.
 pub(crate) const LEAF_BIT: u32 = 1 << 31;
 /// Most packs one leaf can hold (two bits of the entry).
@@ -210,6 +213,10 @@ impl WideBvh {
         if bvh.nodes.is_empty() {
             return wide;
         }
+        // Each wide node takes at least one binary interior node (the root
+        // a leaf's place), so this is room enough; the pages never written
+        // cost nothing, and the excess is given back at the end.
+        wide.nodes.reserve_exact(bvh.nodes.len().div_ceil(2));
         wide.nodes.push(EMPTY_NODE);
         wide.set_simd(true);
         if bvh.nodes[0].is_leaf() {
@@ -218,56 +225,173 @@ impl WideBvh {
         } else {
             wide.collapse(bvh, 0, 0, 1, &mut leaf);
         }
+        wide.nodes.shrink_to_fit();
         wide
+    }
+
+    /// Collapses a binary tree whose leaves are cut into runs of at most
+    /// `run` slots of [`Bvh::prim_indices`] (a mesh's triangle packs):
+    /// returns the tree, whose leaf entries name their runs, and the runs
+    /// as `(first slot, count)`, in order. This is [`WideBvh::from_binary`]
+    /// with a leaf closure that appends the runs; with the `parallel`
+    /// feature the root's interior children are collapsed in parallel and
+    /// joined in order, which gives the same nodes and runs.
+    pub(crate) fn from_binary_runs(bvh: &Bvh, run: u32) -> (Self, Vec<(u32, u32)>) {
+        Self::runs_from(
+            bvh,
+            run,
+            cfg!(feature = "parallel") && bvh.nodes.len() >= PARALLEL_NODES,
+        )
+    }
+
+    /// [`WideBvh::from_binary_runs`], in parallel at the root or not.
+    pub(crate) fn runs_from(bvh: &Bvh, run: u32, parallel: bool) -> (Self, Vec<(u32, u32)>) {
+        let cut = |runs: &mut Vec<(u32, u32)>, first: u32, count: u32| {
+            let start = runs.len();
+            let end = first + count;
+            runs.extend((first..end).step_by(run as usize).map(|f| (f, (end - f).min(run))));
+            leaf_entry(start, runs.len() - start)
+        };
+        let capacity = bvh.prim_indices.len().div_ceil(run as usize) * 3 / 2 + 1;
+        if !parallel || bvh.nodes.first().is_none_or(|root| root.is_leaf()) {
+            let mut runs = Vec::with_capacity(capacity);
+            let wide = Self::from_binary(bvh, |first, count| cut(&mut runs, first, count));
+            return (wide, runs);
+        }
+        // The root as `fill` makes it: leaf lanes' runs first, interior
+        // children in slots 1, 2, ...
+        let (kids, n) = Self::children(bvh, 0);
+        let mut root = EMPTY_NODE;
+        let mut runs = Vec::with_capacity(capacity);
+        let mut interior = Vec::with_capacity(W);
+        for (lane, &k) in kids[..n].iter().enumerate() {
+            let b = &bvh.nodes[k];
+            for axis in 0..3 {
+                root.bounds[0][axis][lane] = b.min[axis];
+                root.bounds[1][axis][lane] = b.max[axis];
+            }
+            root.child[lane] = if b.is_leaf() {
+                cut(&mut runs, b.first, b.count)
+            } else {
+                interior.push(k);
+                interior.len() as u32
+            };
+        }
+        // Each interior child's subtree, numbered from its own root (0).
+        // Room for twice an even share of the nodes (as `from_binary`
+        // reserves) and runs: the pages never written cost nothing.
+        let share = |total: usize| 2 * total / interior.len() + 1;
+        let parts = crate::build::map_indices(interior.len(), 1, |i| {
+            let mut part = WideBvh::default();
+            part.nodes.reserve_exact(share(bvh.nodes.len().div_ceil(2)));
+            part.nodes.push(EMPTY_NODE);
+            let mut part_runs = Vec::with_capacity(share(capacity));
+            part.collapse(bvh, interior[i], 0, 2, &mut |first, count| {
+                cut(&mut part_runs, first, count)
+            });
+            (part, part_runs)
+        });
+        // Sequentially, the children's roots follow the root, and then
+        // each child's other nodes in turn: child `i`'s node `j >= 1`
+        // lands at `base + j - 1`, its run `r` at `run_base + r`.
+        let mut wide = WideBvh::default();
+        wide.set_simd(true);
+        wide.depth = 1;
+        wide.nodes
+            .reserve_exact(1 + parts.iter().map(|(p, _)| p.nodes.len()).sum::<usize>());
+        wide.nodes.push(root);
+        let mut bases = Vec::with_capacity(parts.len());
+        let (mut base, mut run_base) = (1 + parts.len(), runs.len());
+        for (part, part_runs) in &parts {
+            bases.push((base as u32 - 1, (run_base as u32) << 2));
+            base += part.nodes.len() - 1;
+            run_base += part_runs.len();
+        }
+        let relocate = |mut node: WideNode, (node_shift, run_shift): (u32, u32)| {
+            for e in &mut node.child {
+                if *e & LEAF_BIT != 0 {
+                    *e += run_shift;
+                } else if *e != 0 {
+                    *e += node_shift;
+                }
+            }
+            node
+        };
+        for ((part, _), &shift) in parts.iter().zip(&bases) {
+            wide.nodes.push(relocate(part.nodes[0], shift));
+        }
+        for ((part, part_runs), &shift) in parts.iter().zip(&bases) {
+            wide.nodes
+                .extend(part.nodes[1..].iter().map(|&node| relocate(node, shift)));
+            runs.extend_from_slice(part_runs);
+            wide.depth = wide.depth.max(part.depth);
+        }
+        (wide, runs)
+    }
+
+    /// The children that binary interior node `idx`'s wide node gets, in
+    /// lane order, and their number: it opens the largest interior child
+    /// (the last of equally large ones, as `max_by` picks) until there are
+    /// eight, then orders them smallest box first (a stable sort): any hit
+    /// goes to the highest lane first, and a bigger box is likelier to hold
+    /// an occluder (the SAH's premise).
+    fn children(bvh: &Bvh, idx: usize) -> ([usize; W], usize) {
+        let nodes = &bvh.nodes;
+        let area = |k: usize| nodes[k].aabb().half_area();
+        // The children so far, each with its box's area.
+        let mut kids = [(0.0f32, 0usize); W];
+        let first = nodes[idx].first as usize;
+        kids[0] = (area(first), first);
+        kids[1] = (area(first + 1), first + 1);
+        let mut n = 2;
+        while n < W {
+            let open = (0..n)
+                .filter(|&i| !nodes[kids[i].1].is_leaf())
+                .max_by(|&a, &b| kids[a].0.total_cmp(&kids[b].0));
+            let Some(i) = open else { break };
+            let f = nodes[kids[i].1].first as usize;
+            kids[i] = (area(f), f);
+            kids[n] = (area(f + 1), f + 1);
+            n += 1;
+        }
+        kids[..n].sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut order = [0usize; W];
+        for (o, &(_, k)) in order.iter_mut().zip(&kids[..n]) {
+            *o = k;
+        }
+        (order, n)
     }
 
     /// Fills wide node `at` from binary interior node `idx`.
     fn collapse(&mut self, bvh: &Bvh, idx: usize, at: usize, depth: usize, leaf: &mut impl FnMut(u32, u32) -> u32) {
-        let area = |k: usize| bvh.nodes[k].aabb().half_area();
-        let first = bvh.nodes[idx].first as usize;
-        let mut kids = [0usize; W];
-        kids[..2].copy_from_slice(&[first, first + 1]);
-        let mut n = 2;
-        // Open the largest interior child until there are eight.
-        while n < W {
-            let open = (0..n)
-                .filter(|&i| !bvh.nodes[kids[i]].is_leaf())
-                .max_by(|&a, &b| area(kids[a]).total_cmp(&area(kids[b])));
-            let Some(i) = open else { break };
-            let f = bvh.nodes[kids[i]].first as usize;
-            kids[i] = f;
-            kids[n] = f + 1;
-            n += 1;
-        }
-        // Smallest box first: any hit goes to the highest lane first, and a
-        // bigger box is likelier to hold an occluder (the SAH's premise).
-        let kids = &mut kids[..n];
-        kids.sort_by(|&a, &b| area(a).total_cmp(&area(b)));
-        self.fill(bvh, at, kids, depth, leaf);
+        let (kids, n) = Self::children(bvh, idx);
+        self.fill(bvh, at, &kids[..n], depth, leaf);
     }
 
-    /// Fills wide node `at` (at interior level `depth`, root 1) with `kids`.
+    /// Fills wide node `at` (at interior level `depth`, root 1, and still
+    /// empty) with `kids`.
     fn fill(&mut self, bvh: &Bvh, at: usize, kids: &[usize], depth: usize, leaf: &mut impl FnMut(u32, u32) -> u32) {
         self.depth = self.depth.max(depth);
-        let mut node = EMPTY_NODE;
         let mut interior = [(0usize, 0usize); W];
         let mut n_interior = 0;
         for (lane, &k) in kids.iter().enumerate() {
             let b = &bvh.nodes[k];
+            let child = if b.is_leaf() {
+                leaf(b.first, b.count)
+            } else {
+                let child_at = self.nodes.len();
+                interior[n_interior] = (child_at, k);
+                n_interior += 1;
+                self.nodes.push(EMPTY_NODE);
+                child_at as u32
+            };
+            let node = &mut self.nodes[at];
             for axis in 0..3 {
                 node.bounds[0][axis][lane] = b.min[axis];
                 node.bounds[1][axis][lane] = b.max[axis];
             }
-            if b.is_leaf() {
-                node.child[lane] = leaf(b.first, b.count);
-            } else {
-                node.child[lane] = self.nodes.len() as u32;
-                interior[n_interior] = (self.nodes.len(), k);
-                n_interior += 1;
-                self.nodes.push(EMPTY_NODE);
-            }
+            node.child[lane] = child;
         }
-        self.nodes[at] = node;
         for &(child_at, k) in &interior[..n_interior] {
             self.collapse(bvh, k, child_at, depth + 1, leaf);
         }
