@@ -32,7 +32,10 @@
 //! because an [`Avx2`] proves the features present), the intrinsics called
 //! from functions that take an [`Avx2`] (the same proof), and the unaligned
 //! loads and stores of `[f32; 8]` arrays (sound because each array holds
-//! exactly the floats moved).
+//! exactly the floats moved), some of them at byte offsets that this module
+//! makes once per query ([`Slab8`]'s bound rows, [`Ray8`]'s vertex rows:
+//! multiples of 32 inside the array read, whatever the inputs), which spares
+//! the walk recomputing those addresses at every node and pack.
 #![allow(unsafe_code, reason = "the AVX2 kernel; see the module docs")]
 
 use crate::mesh_bvh::{LeafTest, PortableLeaf};
@@ -89,20 +92,71 @@ fn run_boxes_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
     q.run(avx2, PortableLeaf)
 }
 
+/// A ray prepared for the AVX2 box test: the slab constants in every lane,
+/// and the byte offsets in a [`WideNode`] of each axis's near and far bound
+/// rows, so a node's test loads its rows without recomputing where they are.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Slab8 {
+    /// Byte offsets of `bounds[near[axis]][axis]` and
+    /// `bounds[1 - near[axis]][axis]`, per axis: each a multiple of 32 below
+    /// 192, so a row of eight floats from there lies inside the node.
+    near_at: [usize; 3],
+    far_at: [usize; 3],
+    origin: [__m256; 3],
+    inv_near: [__m256; 3],
+    inv_far: [__m256; 3],
+}
+
+/// Bytes of one `[f32; W]` bound row.
+const ROW: usize = size_of::<[f32; W]>();
+
 impl BoxTest for Avx2 {
+    type Ray = Slab8;
+
     #[inline(always)]
-    fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
-        // SAFETY: `self` proves AVX2 and FMA present; the loads and the
-        // store move exactly the eight floats of each array.
+    fn prepare_boxes(self, slab: &SlabRay) -> Slab8 {
+        // `min(1)`: the offsets stay inside `bounds` whatever `near` holds.
+        let near = slab.near.map(|n| n.min(1));
+        // SAFETY: `self` proves AVX.
+        unsafe {
+            Slab8 {
+                near_at: [0, 1, 2].map(|axis| (near[axis] * 3 + axis) * ROW),
+                far_at: [0, 1, 2].map(|axis| ((1 - near[axis]) * 3 + axis) * ROW),
+                origin: [
+                    _mm256_set1_ps(slab.origin[0]),
+                    _mm256_set1_ps(slab.origin[1]),
+                    _mm256_set1_ps(slab.origin[2]),
+                ],
+                inv_near: [
+                    _mm256_set1_ps(slab.inv_near[0]),
+                    _mm256_set1_ps(slab.inv_near[1]),
+                    _mm256_set1_ps(slab.inv_near[2]),
+                ],
+                inv_far: [
+                    _mm256_set1_ps(slab.inv_far[0]),
+                    _mm256_set1_ps(slab.inv_far[1]),
+                    _mm256_set1_ps(slab.inv_far[2]),
+                ],
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn test(self, slab: &Slab8, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
+        let rows = node.bounds.as_ptr().cast::<u8>();
+        // SAFETY: `self` proves AVX2 and FMA present; each load reads the
+        // eight floats of one bound row, which `Slab8`'s offsets (multiples
+        // of 32 below 192, the 192 bytes of `bounds`) name; the store
+        // writes exactly the eight floats of its array.
         unsafe {
             let mut t_in = _mm256_setzero_ps();
             let mut t_out = _mm256_set1_ps(t_bound);
             for axis in 0..3 {
-                let near = load(&node.bounds[slab.near[axis]][axis]);
-                let far = load(&node.bounds[1 - slab.near[axis]][axis]);
-                let o = _mm256_set1_ps(slab.origin[axis]);
-                let a = _mm256_mul_ps(_mm256_sub_ps(near, o), _mm256_set1_ps(slab.inv_near[axis]));
-                let b = _mm256_mul_ps(_mm256_sub_ps(far, o), _mm256_set1_ps(slab.inv_far[axis]));
+                let near = load_at(rows, slab.near_at[axis]);
+                let far = load_at(rows, slab.far_at[axis]);
+                let o = slab.origin[axis];
+                let a = _mm256_mul_ps(_mm256_sub_ps(near, o), slab.inv_near[axis]);
+                let b = _mm256_mul_ps(_mm256_sub_ps(far, o), slab.inv_far[axis]);
                 // maxps/minps return the second operand when either is NaN:
                 // the running value, as the portable compare-and-select
                 // keeps it.
@@ -126,6 +180,19 @@ unsafe fn load(lanes: &[f32; W]) -> __m256 {
     unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
 }
 
+/// Loads the eight floats `at` bytes past `rows`. (A function, not a
+/// closure: closures are not compiled for AVX, and the intrinsic would not
+/// inline.)
+///
+/// # Safety
+/// Needs AVX (an [`Avx2`] proves it), and eight floats at that offset inside
+/// the array `rows` points into.
+#[inline(always)]
+unsafe fn load_at(rows: *const u8, at: usize) -> __m256 {
+    // SAFETY: the caller's promise.
+    unsafe { _mm256_loadu_ps(rows.add(at).cast::<f32>()) }
+}
+
 /// Stores eight floats.
 ///
 /// # Safety
@@ -143,8 +210,10 @@ unsafe fn store(v: __m256) -> [f32; W] {
 /// axis permutation, and its origin and shear constants in every lane.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Ray8 {
-    /// `[kx, ky, kz]`, each below 3.
-    k: [usize; 3],
+    /// Byte offsets of the kx, ky and kz rows in a vertex's `[[f32; 8];
+    /// 3]`: each `32 * k` with `k` below 3, so a row of eight floats from
+    /// there lies inside the vertex's rows.
+    k_at: [usize; 3],
     /// Origin components along kx, ky, kz.
     o: [__m256; 3],
     /// Shear constants sx, sy, sz.
@@ -177,7 +246,7 @@ impl LeafTest for Avx2 {
         // be compiled for AVX, and the intrinsics in it would not inline.)
         unsafe {
             Ray8 {
-                k,
+                k_at: k.map(|k| (k % 3) * size_of::<[f32; W]>()),
                 o: [
                     _mm256_set1_ps(o[k[0] % 3]),
                     _mm256_set1_ps(o[k[1] % 3]),
@@ -275,15 +344,14 @@ impl Avx2 {
     /// hit.
     #[inline(always)]
     fn hits8(self, ray: &Ray8, pack: &TrianglePack8, t_max: f32) -> Hits8 {
-        let [kx, ky, kz] = ray.k;
+        let k = ray.k_at;
         let [ox, oy, oz] = ray.o;
         let [sx, sy, sz] = ray.s;
         // SAFETY: `self` proves AVX2; the loads read exactly the eight floats
-        // of each array (`k` entries are below 3).
+        // of one row (`Ray8`'s offsets name rows).
         unsafe {
             let zero = _mm256_setzero_ps();
             // Vertices in the sheared frame, as in intersect_watertight.
-            let k = [kx % 3, ky % 3, kz % 3];
             let (ax, ay, az) = shear(&pack[0], k, [ox, oy, oz], [sx, sy]);
             let (bx, by, bz) = shear(&pack[1], k, [ox, oy, oz], [sx, sy]);
             let (cx, cy, cz) = shear(&pack[2], k, [ox, oy, oz], [sx, sy]);
@@ -366,10 +434,12 @@ impl Avx2 {
 }
 
 /// One vertex row of a pack moved to the ray's sheared frame: `(x, y, z)`
-/// with `z` not yet scaled.
+/// with `z` not yet scaled. `k_at` are the byte offsets of the kx, ky and
+/// kz rows ([`Ray8`]'s).
 ///
 /// # Safety
-/// Needs AVX (an [`Avx2`] proves it).
+/// Needs AVX (an [`Avx2`] proves it), and each offset must name one of the
+/// three rows (a multiple of 32 below 96).
 #[inline(always)]
 unsafe fn shear(
     v: &[[f32; 8]; 3],
@@ -377,11 +447,13 @@ unsafe fn shear(
     [ox, oy, oz]: [__m256; 3],
     [sx, sy]: [__m256; 2],
 ) -> (__m256, __m256, __m256) {
-    // SAFETY: the caller has AVX; `k` entries index the three rows.
+    let rows = v.as_ptr().cast::<u8>();
+    // SAFETY: the caller has AVX, and the offsets name rows of `v`, so each
+    // load reads the eight floats of one row.
     unsafe {
-        let dz = _mm256_sub_ps(load(&v[kz]), oz);
-        let x = _mm256_sub_ps(_mm256_sub_ps(load(&v[kx]), ox), _mm256_mul_ps(sx, dz));
-        let y = _mm256_sub_ps(_mm256_sub_ps(load(&v[ky]), oy), _mm256_mul_ps(sy, dz));
+        let dz = _mm256_sub_ps(load_at(rows, kz), oz);
+        let x = _mm256_sub_ps(_mm256_sub_ps(load_at(rows, kx), ox), _mm256_mul_ps(sx, dz));
+        let y = _mm256_sub_ps(_mm256_sub_ps(load_at(rows, ky), oy), _mm256_mul_ps(sy, dz));
         (x, y, dz)
     }
 }
@@ -594,8 +666,8 @@ mod tests {
             }
             let slab = SlabRay::new(&Ray::new(o, d));
             let t_bound = [f32::INFINITY, 3.0, 0.0, f32::NAN][i % 4];
-            let (pt, pm) = Portable.test(&slab, &node, t_bound);
-            let (vt, vm) = avx2.test(&slab, &node, t_bound);
+            let (pt, pm) = Portable.test(&Portable.prepare_boxes(&slab), &node, t_bound);
+            let (vt, vm) = avx2.test(&avx2.prepare_boxes(&slab), &node, t_bound);
             assert_eq!(pm, vm, "mask: {node:?} {slab:?}");
             assert_eq!(pt.map(f32::to_bits), vt.map(f32::to_bits), "t_in: {node:?} {slab:?}");
             checked += 1;

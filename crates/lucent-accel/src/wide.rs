@@ -96,8 +96,12 @@ pub(crate) trait Query {
 /// A test of a node's eight child boxes: entry distances and the mask of
 /// the children entered within `[0, t_bound]`.
 pub(crate) trait BoxTest: Copy {
-    /// Tests `node`'s children against `slab`'s ray.
-    fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32);
+    /// The per-ray constants in the form this test reads them.
+    type Ray: Copy;
+    /// `slab` prepared for this test (once per query).
+    fn prepare_boxes(self, slab: &SlabRay) -> Self::Ray;
+    /// Tests `node`'s children against the prepared ray.
+    fn test(self, ray: &Self::Ray, node: &WideNode, t_bound: f32) -> ([f32; W], u32);
 }
 
 /// The portable box test: [`SlabRay::test`], safe Rust.
@@ -105,6 +109,11 @@ pub(crate) trait BoxTest: Copy {
 pub(crate) struct Portable;
 
 impl BoxTest for Portable {
+    type Ray = SlabRay;
+    #[inline(always)]
+    fn prepare_boxes(self, slab: &SlabRay) -> SlabRay {
+        *slab
+    }
     #[inline(always)]
     fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
         slab.test(node, t_bound)
@@ -285,8 +294,9 @@ impl WideBvh {
 
     /// The walk: nearest child first when `ORDERED` (else the highest lane
     /// first, which saves the ordering where any hit will do). `leaf(first_pack,
-    /// packs, &mut t_bound)` tests a leaf's packs, may lower `t_bound` (the
-    /// walk then skips boxes entered beyond it) and returns `true` to stop.
+    /// packs, &mut t_bound)` tests a leaf's packs, may lower `t_bound` (an
+    /// ordered walk then skips boxes entered beyond it; an unordered one
+    /// keeps `t_max`) and returns `true` to stop.
     /// Returns whether the walk was stopped. `tally` is told of every node
     /// tested and every pack visited (`()` for none).
     ///
@@ -376,7 +386,7 @@ impl WideBvh {
         if !traceable(ray) {
             return false;
         }
-        let slab = SlabRay::new(ray);
+        let slab = boxes.prepare_boxes(&SlabRay::new(ray));
         let Some(mut node) = self.nodes.first() else {
             return false;
         };
@@ -404,6 +414,7 @@ impl WideBvh {
                         // farthest first (insertion by entry distance), so
                         // the nearer ones pop first and shrink `t_bound`
                         // before the farther ones are reached.
+                        // Any hit: entries only (see `pop`).
                         let (t, e) = (t_in[l], node.child[l]);
                         let mut at = sp;
                         if ORDERED {
@@ -412,8 +423,8 @@ impl WideBvh {
                                 stack_e[at] = stack_e[at - 1];
                                 at -= 1;
                             }
+                            stack_t[at] = t;
                         }
-                        stack_t[at] = t;
                         stack_e[at] = e;
                         sp += 1;
                     }
@@ -421,7 +432,7 @@ impl WideBvh {
                 }
                 node.child[lane]
             } else {
-                let Some(e) = pop(&stack_t, &stack_e, &mut sp, t_bound) else {
+                let Some(e) = pop::<ORDERED, N>(&stack_t, &stack_e, &mut sp, t_bound) else {
                     return false;
                 };
                 e
@@ -430,10 +441,15 @@ impl WideBvh {
             while entry & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(entry);
                 tally.packs(count);
-                if leaf.visit(first, count, &mut t_bound) {
+                // An unordered walk keeps its bound (see `pop`).
+                let mut bound = t_bound;
+                if leaf.visit(first, count, &mut bound) {
                     return true;
                 }
-                let Some(e) = pop(&stack_t, &stack_e, &mut sp, t_bound) else {
+                if ORDERED {
+                    t_bound = bound;
+                }
+                let Some(e) = pop::<ORDERED, N>(&stack_t, &stack_e, &mut sp, t_bound) else {
                     return false;
                 };
                 entry = e;
@@ -471,9 +487,23 @@ where
 }
 
 /// Pops the next stacked entry that can still hold a hit within `t_bound`
-/// (entered no later than it).
+/// (entered no later than it). Unordered walks skip the check and keep no
+/// entry distances: there `t_bound` is the box test's bound of every node
+/// (nothing lowers it), so every stacked child was entered within it.
 #[inline(always)]
-fn pop<const N: usize>(stack_t: &[f32; N], stack_e: &[u32; N], sp: &mut usize, t_bound: f32) -> Option<u32> {
+fn pop<const ORDERED: bool, const N: usize>(
+    stack_t: &[f32; N],
+    stack_e: &[u32; N],
+    sp: &mut usize,
+    t_bound: f32,
+) -> Option<u32> {
+    if !ORDERED {
+        if *sp == 0 {
+            return None;
+        }
+        *sp -= 1;
+        return Some(stack_e[*sp]);
+    }
     while *sp > 0 {
         *sp -= 1;
         if stack_t[*sp] <= t_bound {
