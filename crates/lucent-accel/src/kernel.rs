@@ -240,7 +240,7 @@ impl LeafTest for Avx2 {
     fn prepare(self, ray: &Ray, _test: TriangleTest) -> Ray8 {
         let prepared = PreparedRay::new(ray, TriangleTest::Watertight);
         let k = prepared.axes();
-        let o = ray.origin;
+        let o = ray.origin.to_array();
         let [sx, sy, sz] = prepared.shear();
         // SAFETY: `self` proves AVX. (No closures here: a closure would not
         // be compiled for AVX, and the intrinsics in it would not inline.)

@@ -187,7 +187,13 @@ impl SlabRay {
 /// never hit anything).
 #[inline(always)]
 pub(crate) fn traceable(ray: &Ray) -> bool {
-    ray.origin.is_finite() && ray.dir.is_finite()
+    // `x - x` is 0 for a finite `x` and NaN for an infinite or NaN one, so
+    // the sum is 0 exactly when all six components are finite: no branch
+    // per component.
+    let (o, d) = (ray.origin, ray.dir);
+    #[allow(clippy::eq_op, reason = "x - x is the finiteness test")]
+    let zero = (o - o) + (d - d);
+    zero.element_sum() == 0.0
 }
 
 /// The lane a walk goes to among the entered ones in `mask` (non-zero):
