@@ -43,12 +43,13 @@ use crate::wide::Query;
 use crate::wide::{BoxTest, SlabRay, W, WideNode};
 use lucent_geom::{PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, edge_f64};
 use std::arch::x86_64::{
-    __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_cvtsd_f64, _mm_setr_ps,
-    _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_blendv_ps, _mm256_castpd256_pd128,
-    _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps,
-    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
-    _mm256_permute2f128_ps, _mm256_permute4x64_pd, _mm256_set1_epi32, _mm256_set1_ps, _mm256_setzero_ps,
-    _mm256_storeu_ps, _mm256_sub_pd, _mm256_sub_ps,
+    __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_cvtsd_f64, _mm_loadl_epi64,
+    _mm_setr_ps, _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256, _mm256_andnot_ps, _mm256_blendv_ps,
+    _mm256_castpd256_pd128, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32, _mm256_cvtepu8_epi32,
+    _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps, _mm256_loadu_si256, _mm256_max_ps,
+    _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
+    _mm256_permute2f128_ps, _mm256_permute4x64_pd, _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_set1_ps,
+    _mm256_setr_epi32, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_storeu_si256, _mm256_sub_pd, _mm256_sub_ps,
 };
 
 /// Proof that the processor has AVX2 and FMA (made only by
@@ -167,7 +168,70 @@ impl BoxTest for Avx2 {
             (store(t_in), mask)
         }
     }
+
+    /// [`crate::wide::pick_lane`]'s ordered choice without a branch per
+    /// lane (their outcomes, comparisons of random rays' entry distances, do
+    /// not predict): the minimum over the entered lanes (the others at
+    /// `+inf`) and the lowest entered lane holding it.
+    #[inline(always)]
+    fn nearest_lane(self, t_in: &[f32; W], mask: u32) -> usize {
+        if mask & mask.wrapping_sub(1) == 0 {
+            return (mask.trailing_zeros() & 7) as usize;
+        }
+        // SAFETY: `self` proves AVX2; the load reads exactly `t_in`.
+        unsafe {
+            let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let on = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(mask as i32), bits), bits);
+            let t = _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), load(t_in), _mm256_castsi256_ps(on));
+            let m = _mm256_min_ps(t, _mm256_permute2f128_ps::<1>(t, t));
+            let m = _mm256_min_ps(m, _mm256_permute_ps::<0b01_00_11_10>(m));
+            let m = _mm256_min_ps(m, _mm256_permute_ps::<0b10_11_00_01>(m));
+            let at_min = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_EQ_OQ>(t, m)) as u32 & mask;
+            (at_min.trailing_zeros() & 7) as usize
+        }
+    }
+
+    /// All of `lanes`' entries in one eight-lane permute and store (where
+    /// eight slots are left, else lane by lane): the lane-by-lane loop's
+    /// exit, after as many pushes as the ray entered children, does not
+    /// predict.
+    #[inline(always)]
+    fn push_entries<const N: usize>(self, stack: &mut [u32; N], sp: &mut usize, child: &[u32; W], lanes: u32) {
+        let lanes = (lanes & 0xff) as usize;
+        let Some(dst) = stack.get_mut(*sp..*sp + W) else {
+            crate::wide::push_entries(stack, sp, child, lanes as u32);
+            return;
+        };
+        // SAFETY: `self` proves AVX2; the loads read exactly the eight bytes
+        // of a table row and the eight entries of `child`, the store writes
+        // exactly the eight slots of `dst`.
+        unsafe {
+            let order = _mm256_cvtepu8_epi32(_mm_loadl_epi64(COMPRESS[lanes].as_ptr().cast()));
+            let entries = _mm256_loadu_si256(child.as_ptr().cast());
+            _mm256_storeu_si256(dst.as_mut_ptr().cast(), _mm256_permutevar8x32_epi32(entries, order));
+        }
+        *sp += lanes.count_ones() as usize;
+    }
 }
+
+/// For each lane mask, its lanes in increasing order (then zeros): the
+/// permutation that packs a mask's entries to the front.
+static COMPRESS: [[u8; W]; 256] = {
+    let mut table = [[0u8; W]; 256];
+    let mut mask = 0;
+    while mask < 256 {
+        let (mut lane, mut n) = (0, 0);
+        while lane < W {
+            if mask & (1 << lane) != 0 {
+                table[mask][n] = lane as u8;
+                n += 1;
+            }
+            lane += 1;
+        }
+        mask += 1;
+    }
+    table
+};
 
 /// Loads eight floats.
 ///
@@ -608,6 +672,59 @@ mod tests {
         fn eq_zero(self) -> bool {
             // SAFETY: only called where the test found AVX2.
             unsafe { store(self) }.iter().all(|x| x.to_bits() == 0)
+        }
+    }
+
+    /// The AVX2 choice of the nearest entered lane equals the portable
+    /// one: random masks and entry distances with ties, zeros and
+    /// infinities (never NaN, as the box test's entered lanes).
+    #[test]
+    fn nearest_lane_matches_the_portable_choice() {
+        let Some(avx2) = Avx2::detect() else {
+            eprintln!("no AVX2 here: nothing to compare");
+            return;
+        };
+        let mut rng = Pcg32::new(23, 8);
+        let values = [0.0, 0.5, 1.0, 1.0, 2.0, f32::INFINITY];
+        let mut multi = 0;
+        for i in 0..20_000 {
+            let t_in: [f32; W] = std::array::from_fn(|_| {
+                if i % 2 == 0 {
+                    values[(rng.next_f32() * values.len() as f32) as usize % values.len()]
+                } else {
+                    rng.next_f32() * 10.0
+                }
+            });
+            let mask = 1 + (rng.next_f32() * 255.0) as u32 % 255;
+            multi += usize::from(mask.count_ones() > 1);
+            assert_eq!(
+                avx2.nearest_lane(&t_in, mask),
+                crate::wide::pick_lane::<true>(&t_in, mask),
+                "{t_in:?} {mask:#b}"
+            );
+        }
+        assert!(multi > 10_000);
+    }
+
+    /// The AVX2 push of a node's entries leaves the stack as the portable
+    /// loop does, below its top: every lane mask, with room for the whole
+    /// eight-lane store and without (near the end of the stack).
+    #[test]
+    fn push_entries_matches_the_portable_loop() {
+        let Some(avx2) = Avx2::detect() else {
+            eprintln!("no AVX2 here: nothing to compare");
+            return;
+        };
+        let child: [u32; W] = std::array::from_fn(|l| 100 + l as u32);
+        for lanes in 0..256u32 {
+            for start in [0, 3, 9, 12, 15, 16] {
+                let (mut a, mut b) = ([7u32; 16], [7u32; 16]);
+                let (mut sa, mut sb) = (start, start);
+                avx2.push_entries(&mut a, &mut sa, &child, lanes);
+                crate::wide::push_entries(&mut b, &mut sb, &child, lanes);
+                assert_eq!(sa, sb, "{lanes:#b} from {start}");
+                assert_eq!(a[..sa], b[..sb], "{lanes:#b} from {start}");
+            }
         }
     }
 

@@ -102,6 +102,20 @@ pub(crate) trait BoxTest: Copy {
     fn prepare_boxes(self, slab: &SlabRay) -> Self::Ray;
     /// Tests `node`'s children against the prepared ray.
     fn test(self, ray: &Self::Ray, node: &WideNode, t_bound: f32) -> ([f32; W], u32);
+    /// The entered lane (of non-zero `mask`) that a closest-hit walk goes
+    /// to: the nearest, the lowest among equals ([`pick_lane`]'s ordered
+    /// choice; entry distances of entered lanes are never NaN).
+    #[inline(always)]
+    fn nearest_lane(self, t_in: &[f32; W], mask: u32) -> usize {
+        pick_lane::<true>(t_in, mask)
+    }
+    /// Pushes the child entries of `lanes` onto `stack` from `*sp` in lane
+    /// order, advancing `*sp` (entries past `N` are dropped; stacks are
+    /// sized so that none are).
+    #[inline(always)]
+    fn push_entries<const N: usize>(self, stack: &mut [u32; N], sp: &mut usize, child: &[u32; W], lanes: u32) {
+        push_entries(stack, sp, child, lanes);
+    }
 }
 
 /// The portable box test: [`SlabRay::test`], safe Rust.
@@ -410,9 +424,18 @@ impl WideBvh {
         loop {
             // `node` was tested: go to one entered child, stack the others.
             let mut entry = if mask != 0 {
-                let lane = pick_lane::<ORDERED>(&t_in, mask);
+                let lane = if ORDERED {
+                    boxes.nearest_lane(&t_in, mask)
+                } else {
+                    pick_lane::<false>(&t_in, mask)
+                };
                 let mut rest = mask & !(1 << lane);
                 let base = sp;
+                if !ORDERED {
+                    // Any hit: entries only (see `pop`), in lane order.
+                    boxes.push_entries(&mut stack_e, &mut sp, &node.child, rest);
+                    rest = 0;
+                }
                 while rest != 0 {
                     let l = rest.trailing_zeros() as usize;
                     if sp < N {
@@ -420,7 +443,6 @@ impl WideBvh {
                         // farthest first (insertion by entry distance), so
                         // the nearer ones pop first and shrink `t_bound`
                         // before the farther ones are reached.
-                        // Any hit: entries only (see `pop`).
                         let (t, e) = (t_in[l], node.child[l]);
                         let mut at = sp;
                         if ORDERED {
@@ -489,6 +511,19 @@ where
     fn run<B: BoxTest, L: crate::mesh_bvh::LeafTest>(self, boxes: B, _: L) -> bool {
         self.wide
             .walk_sized::<ORDERED, B, F, T>(boxes, self.ray, self.t_max, self.leaf, self.tally)
+    }
+}
+
+/// [`BoxTest::push_entries`], one lane at a time.
+#[inline(always)]
+pub(crate) fn push_entries<const N: usize>(stack: &mut [u32; N], sp: &mut usize, child: &[u32; W], mut lanes: u32) {
+    while lanes != 0 {
+        let l = lanes.trailing_zeros() as usize;
+        if let Some(slot) = stack.get_mut(*sp) {
+            *slot = child[l % W];
+            *sp += 1;
+        }
+        lanes &= lanes - 1;
     }
 }
 
