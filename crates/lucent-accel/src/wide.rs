@@ -18,7 +18,11 @@
 //! stacked child is skipped when a hit closer than its entry distance has
 //! been found meanwhile. Any-hit traversal goes to the highest entered lane
 //! (children are stored smallest box first, so that is the largest box) and
-//! pushes the others. The slab test is conservative in the manner of Ize
+//! pushes the others' entries alone (its bound never shrinks, so every
+//! stacked child stays worth visiting). A box test may make these choices
+//! its own way ([`BoxTest::nearest_lane`], [`BoxTest::push_entries`]: the
+//! AVX2 one in registers, without a branch per lane) but never another
+//! choice. The slab test is conservative in the manner of Ize
 //! ("Robust BVH Ray Traversal", JCGT 2013): the reciprocal direction is
 //! scaled down by 2^-20 for entry distances and up for exit distances,
 //! which covers the four roundings of `(plane - origin) * (1 / dir) *
