@@ -32,7 +32,10 @@
 //! because an [`Avx2`] proves the features present), the intrinsics called
 //! from functions that take an [`Avx2`] (the same proof), and the unaligned
 //! loads and stores of `[f32; 8]` arrays (sound because each array holds
-//! exactly the floats moved).
+//! exactly the floats moved), some of them at byte offsets that this module
+//! makes once per query ([`Slab8`]'s bound rows, [`Ray8`]'s vertex rows:
+//! multiples of 32 inside the array read, whatever the inputs), which spares
+//! the walk recomputing those addresses at every node and pack.
 #![allow(unsafe_code, reason = "the AVX2 kernel; see the module docs")]
 
 use crate::mesh_bvh::{LeafTest, PortableLeaf};
@@ -40,12 +43,13 @@ use crate::wide::Query;
 use crate::wide::{BoxTest, SlabRay, W, WideNode};
 use lucent_geom::{PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, edge_f64};
 use std::arch::x86_64::{
-    __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_cvtsd_f64, _mm_setr_ps,
-    _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_andnot_ps, _mm256_blendv_ps, _mm256_castpd256_pd128,
-    _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps,
-    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
-    _mm256_permute2f128_ps, _mm256_permute4x64_pd, _mm256_set1_epi32, _mm256_set1_ps, _mm256_setzero_ps,
-    _mm256_storeu_ps, _mm256_sub_pd, _mm256_sub_ps,
+    __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_cvtsd_f64, _mm_loadl_epi64,
+    _mm_setr_ps, _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256, _mm256_andnot_ps, _mm256_blendv_ps,
+    _mm256_castpd256_pd128, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32, _mm256_cvtepu8_epi32,
+    _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps, _mm256_loadu_si256, _mm256_max_ps,
+    _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
+    _mm256_permute2f128_ps, _mm256_permute4x64_pd, _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_set1_ps,
+    _mm256_setr_epi32, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_storeu_si256, _mm256_sub_pd, _mm256_sub_ps,
 };
 
 /// Proof that the processor has AVX2 and FMA (made only by
@@ -89,20 +93,71 @@ fn run_boxes_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
     q.run(avx2, PortableLeaf)
 }
 
+/// A ray prepared for the AVX2 box test: the slab constants in every lane,
+/// and the byte offsets in a [`WideNode`] of each axis's near and far bound
+/// rows, so a node's test loads its rows without recomputing where they are.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Slab8 {
+    /// Byte offsets of `bounds[near[axis]][axis]` and
+    /// `bounds[1 - near[axis]][axis]`, per axis: each a multiple of 32 below
+    /// 192, so a row of eight floats from there lies inside the node.
+    near_at: [usize; 3],
+    far_at: [usize; 3],
+    origin: [__m256; 3],
+    inv_near: [__m256; 3],
+    inv_far: [__m256; 3],
+}
+
+/// Bytes of one `[f32; W]` bound row.
+const ROW: usize = size_of::<[f32; W]>();
+
 impl BoxTest for Avx2 {
+    type Ray = Slab8;
+
     #[inline(always)]
-    fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
-        // SAFETY: `self` proves AVX2 and FMA present; the loads and the
-        // store move exactly the eight floats of each array.
+    fn prepare_boxes(self, slab: &SlabRay) -> Slab8 {
+        // `min(1)`: the offsets stay inside `bounds` whatever `near` holds.
+        let near = slab.near.map(|n| n.min(1));
+        // SAFETY: `self` proves AVX.
+        unsafe {
+            Slab8 {
+                near_at: [0, 1, 2].map(|axis| (near[axis] * 3 + axis) * ROW),
+                far_at: [0, 1, 2].map(|axis| ((1 - near[axis]) * 3 + axis) * ROW),
+                origin: [
+                    _mm256_set1_ps(slab.origin[0]),
+                    _mm256_set1_ps(slab.origin[1]),
+                    _mm256_set1_ps(slab.origin[2]),
+                ],
+                inv_near: [
+                    _mm256_set1_ps(slab.inv_near[0]),
+                    _mm256_set1_ps(slab.inv_near[1]),
+                    _mm256_set1_ps(slab.inv_near[2]),
+                ],
+                inv_far: [
+                    _mm256_set1_ps(slab.inv_far[0]),
+                    _mm256_set1_ps(slab.inv_far[1]),
+                    _mm256_set1_ps(slab.inv_far[2]),
+                ],
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn test(self, slab: &Slab8, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
+        let rows = node.bounds.as_ptr().cast::<u8>();
+        // SAFETY: `self` proves AVX2 and FMA present; each load reads the
+        // eight floats of one bound row, which `Slab8`'s offsets (multiples
+        // of 32 below 192, the 192 bytes of `bounds`) name; the store
+        // writes exactly the eight floats of its array.
         unsafe {
             let mut t_in = _mm256_setzero_ps();
             let mut t_out = _mm256_set1_ps(t_bound);
             for axis in 0..3 {
-                let near = load(&node.bounds[slab.near[axis]][axis]);
-                let far = load(&node.bounds[1 - slab.near[axis]][axis]);
-                let o = _mm256_set1_ps(slab.origin[axis]);
-                let a = _mm256_mul_ps(_mm256_sub_ps(near, o), _mm256_set1_ps(slab.inv_near[axis]));
-                let b = _mm256_mul_ps(_mm256_sub_ps(far, o), _mm256_set1_ps(slab.inv_far[axis]));
+                let near = load_at(rows, slab.near_at[axis]);
+                let far = load_at(rows, slab.far_at[axis]);
+                let o = slab.origin[axis];
+                let a = _mm256_mul_ps(_mm256_sub_ps(near, o), slab.inv_near[axis]);
+                let b = _mm256_mul_ps(_mm256_sub_ps(far, o), slab.inv_far[axis]);
                 // maxps/minps return the second operand when either is NaN:
                 // the running value, as the portable compare-and-select
                 // keeps it.
@@ -113,7 +168,70 @@ impl BoxTest for Avx2 {
             (store(t_in), mask)
         }
     }
+
+    /// [`crate::wide::pick_lane`]'s ordered choice without a branch per
+    /// lane (their outcomes, comparisons of random rays' entry distances, do
+    /// not predict): the minimum over the entered lanes (the others at
+    /// `+inf`) and the lowest entered lane holding it.
+    #[inline(always)]
+    fn nearest_lane(self, t_in: &[f32; W], mask: u32) -> usize {
+        if mask & mask.wrapping_sub(1) == 0 {
+            return (mask.trailing_zeros() & 7) as usize;
+        }
+        // SAFETY: `self` proves AVX2; the load reads exactly `t_in`.
+        unsafe {
+            let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let on = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(mask as i32), bits), bits);
+            let t = _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), load(t_in), _mm256_castsi256_ps(on));
+            let m = _mm256_min_ps(t, _mm256_permute2f128_ps::<1>(t, t));
+            let m = _mm256_min_ps(m, _mm256_permute_ps::<0b01_00_11_10>(m));
+            let m = _mm256_min_ps(m, _mm256_permute_ps::<0b10_11_00_01>(m));
+            let at_min = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_EQ_OQ>(t, m)) as u32 & mask;
+            (at_min.trailing_zeros() & 7) as usize
+        }
+    }
+
+    /// All of `lanes`' entries in one eight-lane permute and store (where
+    /// eight slots are left, else lane by lane): the lane-by-lane loop's
+    /// exit, after as many pushes as the ray entered children, does not
+    /// predict.
+    #[inline(always)]
+    fn push_entries<const N: usize>(self, stack: &mut [u32; N], sp: &mut usize, child: &[u32; W], lanes: u32) {
+        let lanes = (lanes & 0xff) as usize;
+        let Some(dst) = stack.get_mut(*sp..*sp + W) else {
+            crate::wide::push_entries(stack, sp, child, lanes as u32);
+            return;
+        };
+        // SAFETY: `self` proves AVX2; the loads read exactly the eight bytes
+        // of a table row and the eight entries of `child`, the store writes
+        // exactly the eight slots of `dst`.
+        unsafe {
+            let order = _mm256_cvtepu8_epi32(_mm_loadl_epi64(COMPRESS[lanes].as_ptr().cast()));
+            let entries = _mm256_loadu_si256(child.as_ptr().cast());
+            _mm256_storeu_si256(dst.as_mut_ptr().cast(), _mm256_permutevar8x32_epi32(entries, order));
+        }
+        *sp += lanes.count_ones() as usize;
+    }
 }
+
+/// For each lane mask, its lanes in increasing order (then zeros): the
+/// permutation that packs a mask's entries to the front.
+static COMPRESS: [[u8; W]; 256] = {
+    let mut table = [[0u8; W]; 256];
+    let mut mask = 0;
+    while mask < 256 {
+        let (mut lane, mut n) = (0, 0);
+        while lane < W {
+            if mask & (1 << lane) != 0 {
+                table[mask][n] = lane as u8;
+                n += 1;
+            }
+            lane += 1;
+        }
+        mask += 1;
+    }
+    table
+};
 
 /// Loads eight floats.
 ///
@@ -124,6 +242,19 @@ unsafe fn load(lanes: &[f32; W]) -> __m256 {
     // SAFETY: the array holds exactly the eight floats read (unaligned
     // load); the caller has AVX.
     unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
+}
+
+/// Loads the eight floats `at` bytes past `rows`. (A function, not a
+/// closure: closures are not compiled for AVX, and the intrinsic would not
+/// inline.)
+///
+/// # Safety
+/// Needs AVX (an [`Avx2`] proves it), and eight floats at that offset inside
+/// the array `rows` points into.
+#[inline(always)]
+unsafe fn load_at(rows: *const u8, at: usize) -> __m256 {
+    // SAFETY: the caller's promise.
+    unsafe { _mm256_loadu_ps(rows.add(at).cast::<f32>()) }
 }
 
 /// Stores eight floats.
@@ -143,8 +274,10 @@ unsafe fn store(v: __m256) -> [f32; W] {
 /// axis permutation, and its origin and shear constants in every lane.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Ray8 {
-    /// `[kx, ky, kz]`, each below 3.
-    k: [usize; 3],
+    /// Byte offsets of the kx, ky and kz rows in a vertex's `[[f32; 8];
+    /// 3]`: each `32 * k` with `k` below 3, so a row of eight floats from
+    /// there lies inside the vertex's rows.
+    k_at: [usize; 3],
     /// Origin components along kx, ky, kz.
     o: [__m256; 3],
     /// Shear constants sx, sy, sz.
@@ -171,13 +304,13 @@ impl LeafTest for Avx2 {
     fn prepare(self, ray: &Ray, _test: TriangleTest) -> Ray8 {
         let prepared = PreparedRay::new(ray, TriangleTest::Watertight);
         let k = prepared.axes();
-        let o = ray.origin;
+        let o = ray.origin.to_array();
         let [sx, sy, sz] = prepared.shear();
         // SAFETY: `self` proves AVX. (No closures here: a closure would not
         // be compiled for AVX, and the intrinsics in it would not inline.)
         unsafe {
             Ray8 {
-                k,
+                k_at: k.map(|k| (k % 3) * size_of::<[f32; W]>()),
                 o: [
                     _mm256_set1_ps(o[k[0] % 3]),
                     _mm256_set1_ps(o[k[1] % 3]),
@@ -275,15 +408,14 @@ impl Avx2 {
     /// hit.
     #[inline(always)]
     fn hits8(self, ray: &Ray8, pack: &TrianglePack8, t_max: f32) -> Hits8 {
-        let [kx, ky, kz] = ray.k;
+        let k = ray.k_at;
         let [ox, oy, oz] = ray.o;
         let [sx, sy, sz] = ray.s;
         // SAFETY: `self` proves AVX2; the loads read exactly the eight floats
-        // of each array (`k` entries are below 3).
+        // of one row (`Ray8`'s offsets name rows).
         unsafe {
             let zero = _mm256_setzero_ps();
             // Vertices in the sheared frame, as in intersect_watertight.
-            let k = [kx % 3, ky % 3, kz % 3];
             let (ax, ay, az) = shear(&pack[0], k, [ox, oy, oz], [sx, sy]);
             let (bx, by, bz) = shear(&pack[1], k, [ox, oy, oz], [sx, sy]);
             let (cx, cy, cz) = shear(&pack[2], k, [ox, oy, oz], [sx, sy]);
@@ -366,10 +498,12 @@ impl Avx2 {
 }
 
 /// One vertex row of a pack moved to the ray's sheared frame: `(x, y, z)`
-/// with `z` not yet scaled.
+/// with `z` not yet scaled. `k_at` are the byte offsets of the kx, ky and
+/// kz rows ([`Ray8`]'s).
 ///
 /// # Safety
-/// Needs AVX (an [`Avx2`] proves it).
+/// Needs AVX (an [`Avx2`] proves it), and each offset must name one of the
+/// three rows (a multiple of 32 below 96).
 #[inline(always)]
 unsafe fn shear(
     v: &[[f32; 8]; 3],
@@ -377,11 +511,13 @@ unsafe fn shear(
     [ox, oy, oz]: [__m256; 3],
     [sx, sy]: [__m256; 2],
 ) -> (__m256, __m256, __m256) {
-    // SAFETY: the caller has AVX; `k` entries index the three rows.
+    let rows = v.as_ptr().cast::<u8>();
+    // SAFETY: the caller has AVX, and the offsets name rows of `v`, so each
+    // load reads the eight floats of one row.
     unsafe {
-        let dz = _mm256_sub_ps(load(&v[kz]), oz);
-        let x = _mm256_sub_ps(_mm256_sub_ps(load(&v[kx]), ox), _mm256_mul_ps(sx, dz));
-        let y = _mm256_sub_ps(_mm256_sub_ps(load(&v[ky]), oy), _mm256_mul_ps(sy, dz));
+        let dz = _mm256_sub_ps(load_at(rows, kz), oz);
+        let x = _mm256_sub_ps(_mm256_sub_ps(load_at(rows, kx), ox), _mm256_mul_ps(sx, dz));
+        let y = _mm256_sub_ps(_mm256_sub_ps(load_at(rows, ky), oy), _mm256_mul_ps(sy, dz));
         (x, y, dz)
     }
 }
@@ -539,6 +675,59 @@ mod tests {
         }
     }
 
+    /// The AVX2 choice of the nearest entered lane equals the portable
+    /// one: random masks and entry distances with ties, zeros and
+    /// infinities (never NaN, as the box test's entered lanes).
+    #[test]
+    fn nearest_lane_matches_the_portable_choice() {
+        let Some(avx2) = Avx2::detect() else {
+            eprintln!("no AVX2 here: nothing to compare");
+            return;
+        };
+        let mut rng = Pcg32::new(23, 8);
+        let values = [0.0, 0.5, 1.0, 1.0, 2.0, f32::INFINITY];
+        let mut multi = 0;
+        for i in 0..20_000 {
+            let t_in: [f32; W] = std::array::from_fn(|_| {
+                if i % 2 == 0 {
+                    values[(rng.next_f32() * values.len() as f32) as usize % values.len()]
+                } else {
+                    rng.next_f32() * 10.0
+                }
+            });
+            let mask = 1 + (rng.next_f32() * 255.0) as u32 % 255;
+            multi += usize::from(mask.count_ones() > 1);
+            assert_eq!(
+                avx2.nearest_lane(&t_in, mask),
+                crate::wide::pick_lane::<true>(&t_in, mask),
+                "{t_in:?} {mask:#b}"
+            );
+        }
+        assert!(multi > 10_000);
+    }
+
+    /// The AVX2 push of a node's entries leaves the stack as the portable
+    /// loop does, below its top: every lane mask, with room for the whole
+    /// eight-lane store and without (near the end of the stack).
+    #[test]
+    fn push_entries_matches_the_portable_loop() {
+        let Some(avx2) = Avx2::detect() else {
+            eprintln!("no AVX2 here: nothing to compare");
+            return;
+        };
+        let child: [u32; W] = std::array::from_fn(|l| 100 + l as u32);
+        for lanes in 0..256u32 {
+            for start in [0, 3, 9, 12, 15, 16] {
+                let (mut a, mut b) = ([7u32; 16], [7u32; 16]);
+                let (mut sa, mut sb) = (start, start);
+                avx2.push_entries(&mut a, &mut sa, &child, lanes);
+                crate::wide::push_entries(&mut b, &mut sb, &child, lanes);
+                assert_eq!(sa, sb, "{lanes:#b} from {start}");
+                assert_eq!(a[..sa], b[..sb], "{lanes:#b} from {start}");
+            }
+        }
+    }
+
     /// The AVX2 box test equals the portable one, bit for bit, on random
     /// boxes (empty, flat, infinite and NaN ones among them) and rays
     /// (axis-parallel, in slab planes, zero and signed-zero components).
@@ -594,8 +783,8 @@ mod tests {
             }
             let slab = SlabRay::new(&Ray::new(o, d));
             let t_bound = [f32::INFINITY, 3.0, 0.0, f32::NAN][i % 4];
-            let (pt, pm) = Portable.test(&slab, &node, t_bound);
-            let (vt, vm) = avx2.test(&slab, &node, t_bound);
+            let (pt, pm) = Portable.test(&Portable.prepare_boxes(&slab), &node, t_bound);
+            let (vt, vm) = avx2.test(&avx2.prepare_boxes(&slab), &node, t_bound);
             assert_eq!(pm, vm, "mask: {node:?} {slab:?}");
             assert_eq!(pt.map(f32::to_bits), vt.map(f32::to_bits), "t_in: {node:?} {slab:?}");
             checked += 1;

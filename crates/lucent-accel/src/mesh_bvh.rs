@@ -117,21 +117,56 @@ impl LeafTest for PortableLeaf {
     }
 }
 
+/// A ray prepared for the pack tests when a walk first reaches a leaf: many
+/// rays leave the tree before any leaf (most random rays miss the mesh), and
+/// they skip the preparation (the watertight test's axes and shear).
+struct LazyRay<'a, L: LeafTest> {
+    ray: &'a Ray,
+    test: TriangleTest,
+    prepared: Option<L::Ray>,
+}
+
+impl<'a, L: LeafTest> LazyRay<'a, L> {
+    #[inline(always)]
+    fn new(ray: &'a Ray, test: TriangleTest) -> Self {
+        Self {
+            ray,
+            test,
+            prepared: None,
+        }
+    }
+
+    /// The prepared ray, made on the first call (always `Some`). (No
+    /// `get_or_insert_with`: a closure would not be compiled for the AVX2
+    /// kernel's features, and the preparation's intrinsics would not
+    /// inline.)
+    #[inline(always)]
+    fn get(&mut self, leaves: L) -> Option<&L::Ray> {
+        if self.prepared.is_none() {
+            self.prepared = Some(leaves.prepare(self.ray, self.test));
+        }
+        self.prepared.as_ref()
+    }
+}
+
 /// The leaves of a closest-hit walk: the nearest hit so far, as (slot =
 /// `LANES * pack + lane`, hit).
 struct ClosestLeaves<'a, L: LeafTest> {
     packs: &'a [Pack],
     leaves: L,
-    ray: L::Ray,
+    ray: LazyRay<'a, L>,
     best: Option<(usize, MeshHit)>,
 }
 
 impl<L: LeafTest> Leaves for &mut ClosestLeaves<'_, L> {
     #[inline(always)]
     fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool {
+        let Some(ray) = self.ray.get(self.leaves) else {
+            return false;
+        };
         for idx in first..first + count {
             let Some(pack) = self.packs.get(idx) else { break };
-            if let Some((lane, h)) = self.leaves.nearest(&self.ray, &pack.v, *t_bound) {
+            if let Some((lane, h)) = self.leaves.nearest(ray, &pack.v, *t_bound) {
                 *t_bound = h.t;
                 let prim = pack.prim[lane % LANES];
                 self.best = Some((
@@ -153,15 +188,18 @@ impl<L: LeafTest> Leaves for &mut ClosestLeaves<'_, L> {
 struct AnyLeaves<'a, L: LeafTest> {
     packs: &'a [Pack],
     leaves: L,
-    ray: L::Ray,
+    ray: LazyRay<'a, L>,
     t_max: f32,
 }
 
 impl<L: LeafTest> Leaves for AnyLeaves<'_, L> {
     #[inline(always)]
     fn visit(&mut self, first: usize, count: usize, _: &mut f32) -> bool {
+        let Some(ray) = self.ray.get(self.leaves) else {
+            return false;
+        };
         for pack in self.packs.get(first..first + count).unwrap_or_default() {
-            if self.leaves.any(&self.ray, &pack.v, self.t_max) {
+            if self.leaves.any(ray, &pack.v, self.t_max) {
                 return true;
             }
         }
@@ -439,7 +477,7 @@ impl MeshBvh {
         let mut visit = ClosestLeaves {
             packs: &self.packs,
             leaves,
-            ray: leaves.prepare(ray, self.test),
+            ray: LazyRay::new(ray, self.test),
             best: None,
         };
         self.wide
@@ -489,7 +527,7 @@ impl MeshBvh {
         let visit = AnyLeaves {
             packs: &self.packs,
             leaves,
-            ray: leaves.prepare(ray, self.test),
+            ray: LazyRay::new(ray, self.test),
             t_max,
         };
         self.wide.walk_sized::<false, B, _, T>(boxes, ray, t_max, visit, tally)

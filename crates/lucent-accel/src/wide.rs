@@ -18,7 +18,11 @@
 //! stacked child is skipped when a hit closer than its entry distance has
 //! been found meanwhile. Any-hit traversal goes to the highest entered lane
 //! (children are stored smallest box first, so that is the largest box) and
-//! pushes the others. The slab test is conservative in the manner of Ize
+//! pushes the others' entries alone (its bound never shrinks, so every
+//! stacked child stays worth visiting). A box test may make these choices
+//! its own way ([`BoxTest::nearest_lane`], [`BoxTest::push_entries`]: the
+//! AVX2 one in registers, without a branch per lane) but never another
+//! choice. The slab test is conservative in the manner of Ize
 //! ("Robust BVH Ray Traversal", JCGT 2013): the reciprocal direction is
 //! scaled down by 2^-20 for entry distances and up for exit distances,
 //! which covers the four roundings of `(plane - origin) * (1 / dir) *
@@ -99,8 +103,26 @@ pub(crate) trait Query {
 /// A test of a node's eight child boxes: entry distances and the mask of
 /// the children entered within `[0, t_bound]`.
 pub(crate) trait BoxTest: Copy {
-    /// Tests `node`'s children against `slab`'s ray.
-    fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32);
+    /// The per-ray constants in the form this test reads them.
+    type Ray: Copy;
+    /// `slab` prepared for this test (once per query).
+    fn prepare_boxes(self, slab: &SlabRay) -> Self::Ray;
+    /// Tests `node`'s children against the prepared ray.
+    fn test(self, ray: &Self::Ray, node: &WideNode, t_bound: f32) -> ([f32; W], u32);
+    /// The entered lane (of non-zero `mask`) that a closest-hit walk goes
+    /// to: the nearest, the lowest among equals ([`pick_lane`]'s ordered
+    /// choice; entry distances of entered lanes are never NaN).
+    #[inline(always)]
+    fn nearest_lane(self, t_in: &[f32; W], mask: u32) -> usize {
+        pick_lane::<true>(t_in, mask)
+    }
+    /// Pushes the child entries of `lanes` onto `stack` from `*sp` in lane
+    /// order, advancing `*sp` (entries past `N` are dropped; stacks are
+    /// sized so that none are).
+    #[inline(always)]
+    fn push_entries<const N: usize>(self, stack: &mut [u32; N], sp: &mut usize, child: &[u32; W], lanes: u32) {
+        push_entries(stack, sp, child, lanes);
+    }
 }
 
 /// The portable box test: [`SlabRay::test`], safe Rust.
@@ -108,6 +130,11 @@ pub(crate) trait BoxTest: Copy {
 pub(crate) struct Portable;
 
 impl BoxTest for Portable {
+    type Ray = SlabRay;
+    #[inline(always)]
+    fn prepare_boxes(self, slab: &SlabRay) -> SlabRay {
+        *slab
+    }
     #[inline(always)]
     fn test(self, slab: &SlabRay, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
         slab.test(node, t_bound)
@@ -181,7 +208,13 @@ impl SlabRay {
 /// never hit anything).
 #[inline(always)]
 pub(crate) fn traceable(ray: &Ray) -> bool {
-    ray.origin.is_finite() && ray.dir.is_finite()
+    // `x - x` is 0 for a finite `x` and NaN for an infinite or NaN one, so
+    // the sum is 0 exactly when all six components are finite: no branch
+    // per component.
+    let (o, d) = (ray.origin, ray.dir);
+    #[allow(clippy::eq_op, reason = "x - x is the finiteness test")]
+    let zero = (o - o) + (d - d);
+    zero.element_sum() == 0.0
 }
 
 /// The lane a walk goes to among the entered ones in `mask` (non-zero):
@@ -409,8 +442,9 @@ impl WideBvh {
 
     /// The walk: nearest child first when `ORDERED` (else the highest lane
     /// first, which saves the ordering where any hit will do). `leaf(first_pack,
-    /// packs, &mut t_bound)` tests a leaf's packs, may lower `t_bound` (the
-    /// walk then skips boxes entered beyond it) and returns `true` to stop.
+    /// packs, &mut t_bound)` tests a leaf's packs, may lower `t_bound` (an
+    /// ordered walk then skips boxes entered beyond it; an unordered one
+    /// keeps `t_max`) and returns `true` to stop.
     /// Returns whether the walk was stopped. `tally` is told of every node
     /// tested and every pack visited (`()` for none).
     ///
@@ -500,7 +534,7 @@ impl WideBvh {
         if !traceable(ray) {
             return false;
         }
-        let slab = SlabRay::new(ray);
+        let slab = boxes.prepare_boxes(&SlabRay::new(ray));
         let Some(mut node) = self.nodes.first() else {
             return false;
         };
@@ -518,9 +552,18 @@ impl WideBvh {
         loop {
             // `node` was tested: go to one entered child, stack the others.
             let mut entry = if mask != 0 {
-                let lane = pick_lane::<ORDERED>(&t_in, mask);
+                let lane = if ORDERED {
+                    boxes.nearest_lane(&t_in, mask)
+                } else {
+                    pick_lane::<false>(&t_in, mask)
+                };
                 let mut rest = mask & !(1 << lane);
                 let base = sp;
+                if !ORDERED {
+                    // Any hit: entries only (see `pop`), in lane order.
+                    boxes.push_entries(&mut stack_e, &mut sp, &node.child, rest);
+                    rest = 0;
+                }
                 while rest != 0 {
                     let l = rest.trailing_zeros() as usize;
                     if sp < N {
@@ -536,8 +579,8 @@ impl WideBvh {
                                 stack_e[at] = stack_e[at - 1];
                                 at -= 1;
                             }
+                            stack_t[at] = t;
                         }
-                        stack_t[at] = t;
                         stack_e[at] = e;
                         sp += 1;
                     }
@@ -545,7 +588,7 @@ impl WideBvh {
                 }
                 node.child[lane]
             } else {
-                let Some(e) = pop(&stack_t, &stack_e, &mut sp, t_bound) else {
+                let Some(e) = pop::<ORDERED, N>(&stack_t, &stack_e, &mut sp, t_bound) else {
                     return false;
                 };
                 e
@@ -554,10 +597,15 @@ impl WideBvh {
             while entry & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(entry);
                 tally.packs(count);
-                if leaf.visit(first, count, &mut t_bound) {
+                // An unordered walk keeps its bound (see `pop`).
+                let mut bound = t_bound;
+                if leaf.visit(first, count, &mut bound) {
                     return true;
                 }
-                let Some(e) = pop(&stack_t, &stack_e, &mut sp, t_bound) else {
+                if ORDERED {
+                    t_bound = bound;
+                }
+                let Some(e) = pop::<ORDERED, N>(&stack_t, &stack_e, &mut sp, t_bound) else {
                     return false;
                 };
                 entry = e;
@@ -594,10 +642,37 @@ where
     }
 }
 
-/// Pops the next stacked entry that can still hold a hit within `t_bound`
-/// (entered no later than it).
+/// [`BoxTest::push_entries`], one lane at a time.
 #[inline(always)]
-fn pop<const N: usize>(stack_t: &[f32; N], stack_e: &[u32; N], sp: &mut usize, t_bound: f32) -> Option<u32> {
+pub(crate) fn push_entries<const N: usize>(stack: &mut [u32; N], sp: &mut usize, child: &[u32; W], mut lanes: u32) {
+    while lanes != 0 {
+        let l = lanes.trailing_zeros() as usize;
+        if let Some(slot) = stack.get_mut(*sp) {
+            *slot = child[l % W];
+            *sp += 1;
+        }
+        lanes &= lanes - 1;
+    }
+}
+
+/// Pops the next stacked entry that can still hold a hit within `t_bound`
+/// (entered no later than it). Unordered walks skip the check and keep no
+/// entry distances: there `t_bound` is the box test's bound of every node
+/// (nothing lowers it), so every stacked child was entered within it.
+#[inline(always)]
+fn pop<const ORDERED: bool, const N: usize>(
+    stack_t: &[f32; N],
+    stack_e: &[u32; N],
+    sp: &mut usize,
+    t_bound: f32,
+) -> Option<u32> {
+    if !ORDERED {
+        if *sp == 0 {
+            return None;
+        }
+        *sp -= 1;
+        return Some(stack_e[*sp]);
+    }
     while *sp > 0 {
         *sp -= 1;
         if stack_t[*sp] <= t_bound {

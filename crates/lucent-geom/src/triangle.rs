@@ -104,26 +104,24 @@ impl PreparedRay {
     #[inline]
     pub fn new(ray: &Ray, test: TriangleTest) -> Self {
         let a = ray.dir.abs();
-        // Largest component; NaN compares false and leaves z.
-        let kz = if a.x > a.y && a.x > a.z {
-            0
-        } else if a.y > a.z {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        // Keep the winding: swap x and y when the ray goes down the axis.
-        if ray.dir[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        let dz = ray.dir[kz];
+        let d = ray.dir.to_array();
+        // Largest component; NaN compares false and leaves z. Written as
+        // selections rather than branches (this runs once per query, and the
+        // branches of random directions do not predict).
+        let x_largest = a.x > a.y && a.x > a.z;
+        let kz = if x_largest { 0 } else { 2 - usize::from(a.y > a.z) };
+        let dz = d[kz];
+        // (kz + 1) % 3 and (kz + 2) % 3; swapped to keep the winding when
+        // the ray goes down the axis.
+        let (next, after) = ([1, 2, 0][kz], [2, 0, 1][kz]);
+        let down = dz < 0.0;
+        let kx = if down { after } else { next };
+        let ky = if down { next } else { after };
         Self {
             ray: *ray,
             test,
             k: [kx, ky, kz],
-            shear: [ray.dir[kx] / dz, ray.dir[ky] / dz, 1.0 / dz],
+            shear: [d[kx] / dz, d[ky] / dz, 1.0 / dz],
         }
     }
 
