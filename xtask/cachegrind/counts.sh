@@ -22,6 +22,9 @@
 #      PEER=/tmp/embree-peer (where xtask/embree/compare.sh left its ray files)
 #      ASSETS=<repo>/../shared/assets (the shared meshes)
 #      OUT=/tmp/lucent-counts (scratch: truncated ray files)
+#      LL=SIZE,ASSOC,LINE (cachegrind's simulated last level; by default it
+#      copies the host's L3, 32 MiB here, which holds these meshes whole, so
+#      LL=2097152,16,64 models this VM's 2 MiB L2 per core instead)
 #
 # Prints one JSON line per case: instructions (Ir), level-1 data misses
 # (D1mr + D1mw), last-level misses (LLmr + LLmw: DLL plus ILL) and branch
@@ -44,7 +47,7 @@ LUCENT_BENCH=${LUCENT_BENCH:-$ROOT/target/release/lucent-bench}
 counts() {
   local f
   f=$(mktemp "$OUT/cg.XXXXXX")
-  if ! valgrind --tool=cachegrind --cache-sim=yes --branch-sim=yes --cachegrind-out-file="$f" "$@" >/dev/null 2>"$f.err"; then
+  if ! valgrind --tool=cachegrind --cache-sim=yes --branch-sim=yes ${LL:+--LL=$LL} --cachegrind-out-file="$f" "$@" >/dev/null 2>"$f.err"; then
     echo "failed under cachegrind: $*" >&2
     tail -5 "$f.err" >&2
     exit 1
