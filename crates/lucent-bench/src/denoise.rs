@@ -75,7 +75,8 @@ fn quality_name(q: Quality) -> &'static str {
 /// Runs the bench (see the module docs).
 pub fn run(args: DenoiseBenchArgs) -> Result<()> {
     let denoiser = Denoiser::load(args.threads)?;
-    let (scene, _) = lucent_assets::load_scene(&args.scene).with_context(|| args.scene.display().to_string())?;
+    // Asset errors name the file themselves.
+    let (scene, _) = lucent_assets::load_scene(&args.scene)?;
     let rs = extract(&scene).with_context(|| args.scene.display().to_string())?;
     for &(w, h) in &args.size {
         let settings = RenderSettings {
