@@ -38,6 +38,9 @@ pub(super) fn lambert_eval(wo: Vec3, wi: Vec3) -> f32 {
 }
 
 /// Cosine-weighted density, the same expression as [`lambert_eval`].
+/// Kept for the tests: the reference the combined `*_eval_pdf` functions
+/// are compared with bit for bit.
+#[cfg(test)]
 #[inline]
 pub(super) fn lambert_pdf(wo: Vec3, wi: Vec3) -> f32 {
     lambert_eval(wo, wi)
@@ -69,6 +72,9 @@ fn phong_cos(wo: Vec3, wi: Vec3) -> Option<f32> {
 /// `f = (n + 2) / (2 pi) cos^n alpha`, times `|cos theta_i|`. Its
 /// directional albedo is 1 at normal incidence and below 1 elsewhere, and
 /// it is symmetric in `wo` and `wi` (two-sided).
+/// Kept for the tests: the reference the combined `*_eval_pdf` functions
+/// are compared with bit for bit.
+#[cfg(test)]
 #[inline]
 pub(super) fn phong_eval(wo: Vec3, wi: Vec3, n: f32) -> f32 {
     phong_cos(wo, wi).map_or(0.0, |c| (n + 2.0) * (0.5 * FRAC_1_PI) * c.powf(n) * wi.z.abs())
@@ -76,12 +82,15 @@ pub(super) fn phong_eval(wo: Vec3, wi: Vec3, n: f32) -> f32 {
 
 /// Density of [`phong_sample`]: `(n + 1) / (2 pi) cos^n alpha` on `wo`'s
 /// side; the part of the lobe below the surface is returned as no sample.
+/// Kept for the tests: the reference the combined `*_eval_pdf` functions
+/// are compared with bit for bit.
+#[cfg(test)]
 #[inline]
 pub(super) fn phong_pdf(wo: Vec3, wi: Vec3, n: f32) -> f32 {
     phong_cos(wo, wi).map_or(0.0, |c| (n + 1.0) * (0.5 * FRAC_1_PI) * c.powf(n))
 }
 
-/// [`phong_eval`] and [`phong_pdf`] together, `cos^n alpha` raised once.
+/// `phong_eval` and `phong_pdf` together, `cos^n alpha` raised once.
 #[inline]
 pub(super) fn phong_eval_pdf(wo: Vec3, wi: Vec3, n: f32) -> (f32, f32) {
     phong_cos(wo, wi).map_or((0.0, 0.0), |c| {
@@ -142,6 +151,9 @@ fn ggx_lambda(w: Vec3, alpha: f32) -> f32 {
 /// GGX microfacet reflection with Fresnel 1 and Smith's height-correlated
 /// masking-shadowing `G2 = 1 / (1 + Lambda(wo) + Lambda(wi))` (Heitz
 /// 2014): `f |cos theta_i| = D G2 / (4 |cos theta_o|)`. Two-sided.
+/// Kept for the tests: the reference the combined `*_eval_pdf` functions
+/// are compared with bit for bit.
+#[cfg(test)]
 #[inline]
 pub(super) fn ggx_eval(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
     let Some((wo, wi, h)) = reflection_half_vector(wo, wi) else {
@@ -154,6 +166,9 @@ pub(super) fn ggx_eval(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
 /// Density of [`ggx_sample`]: the visible-normal density `G1(wo) D(h)
 /// max(0, wo.h) / wo.z` times the reflection Jacobian `1 / (4 wo.h)`,
 /// which leaves `G1(wo) D(h) / (4 wo.z)`.
+/// Kept for the tests: the reference the combined `*_eval_pdf` functions
+/// are compared with bit for bit.
+#[cfg(test)]
 #[inline]
 pub(super) fn ggx_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
     let Some((wo, _, h)) = reflection_half_vector(wo, wi) else {
@@ -163,7 +178,7 @@ pub(super) fn ggx_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
     g1 * ggx_d(h, alpha) / (4.0 * wo.z)
 }
 
-/// [`ggx_eval`] and [`ggx_pdf`] together: one half vector, one
+/// `ggx_eval` and `ggx_pdf` together: one half vector, one
 /// `Lambda(wo)`, one `D(h)`, each number made as the two make it apart.
 #[inline]
 pub(super) fn ggx_eval_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> (f32, f32) {
