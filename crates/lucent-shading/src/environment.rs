@@ -261,13 +261,8 @@ mod tests {
         // The constant background: its texel, to the bit, in every
         // direction and at every coordinate (the bilinear blend of four
         // equal corners drifted by a unit in the last place for some).
-        let mut state = 0x9e37_79b9_u32;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state as f32 / u32::MAX as f32 * 2.0 - 1.0
-        };
+        let mut rng = lucent_geom::Pcg32::new(0x9e37_79b9, 0);
+        let mut next = || rng.next_f32() * 2.0 - 1.0;
         for texel in [
             Vec3::new(0.02, 0.02, 0.03),
             Vec3::new(0.7, 1.3, 1e-20),
