@@ -471,7 +471,7 @@ fn work(mut scene: RenderScene, shared: &Shared, frames: &Sender<Frame>) {
                     continue;
                 }
                 // A one-pass preview's film is done after its one pass.
-                let cap = if one_pass(&r.settings) { 1 } else { r.max_spp.max(1) };
+                let cap = if r.settings.one_pass() { 1 } else { r.max_spp.max(1) };
                 let denoising = denoiser.will_denoise(&r.settings) && still.as_ref().is_some_and(Still::guided);
                 let handed = state.handed.filter(|h| h.0 == r.generation).map(|h| h.1);
                 let idle = state.denoise_job.is_none() && !state.denoise_busy;
@@ -627,7 +627,7 @@ fn refine(
 ) -> Option<Frame> {
     let (w, h) = (r.settings.width.max(1), r.settings.height.max(1));
     let (rw, rh) = scaled_size(w, h, r.still_scale);
-    if one_pass(&r.settings) {
+    if r.settings.one_pass() {
         let Some((frame, film)) = still_preview(scene, r, (rw, rh), costs, denoiser, cancel) else {
             *still = None;
             return None;
@@ -702,13 +702,6 @@ fn first_hit(settings: &RenderSettings) -> RenderSettings {
         max_depth: 1,
         ..*settings
     }
-}
-
-/// Whether `settings` ask for a one-pass image
-/// ([`RenderSettings::one_pass`]: `lighting_scale` above 1, or `smooth`
-/// without denoising, with the path tracer).
-fn one_pass(settings: &RenderSettings) -> bool {
-    settings.one_pass()
 }
 
 /// The still image of a one-pass render (`RenderSettings::one_pass`):
