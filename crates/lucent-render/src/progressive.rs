@@ -551,10 +551,14 @@ mod tests {
         // The first sample per pixel is always taken whole, so on a loaded
         // machine where it alone outlasts the budget, the render ends after
         // it (one sample) instead: the deadline only cuts later passes.
+        // Otherwise the render may run past the deadline by what the
+        // workers take to notice it and the film copy that undoes the cut
+        // pass; on a loaded machine a descheduled worker notices late, so
+        // the allowance grows with the one-sample pass timed beside it.
         let spp = out.film.n_samples();
         assert!(
-            (0.9..=1.1).contains(&elapsed) || (elapsed > 1.1 && spp == 1),
-            "{elapsed:.3} s, {spp} spp"
+            (0.9..=1.1 + t1).contains(&elapsed) || (elapsed > 1.1 && spp == 1),
+            "{elapsed:.3} s, {spp} spp, one spp {t1:.3} s"
         );
     }
 
