@@ -338,10 +338,18 @@ impl<'a> PathTracer<'a> {
     /// `contribution` scaled down so that no channel exceeds the indirect
     /// clamp, when it is `indirect` (light that reached the first surface
     /// by way of another bounce) and a clamp is set; else unchanged.
+    ///
+    /// Without a clamp (an infinite one, the default) nothing is compared:
+    /// no channel exceeds infinity, so the contribution is returned as it
+    /// is, at the cost of one branch rather than a maximum and a select per
+    /// contribution.
     #[inline(always)]
     fn clamped(&self, contribution: Vec3, indirect: bool) -> Vec3 {
+        if !(indirect && self.clamp_indirect < f32::INFINITY) {
+            return contribution;
+        }
         let m = contribution.max_element();
-        if indirect && m > self.clamp_indirect {
+        if m > self.clamp_indirect {
             contribution * (self.clamp_indirect / m)
         } else {
             contribution
