@@ -115,6 +115,11 @@ impl<'a> SurfaceInteraction<'a> {
             dir.extend(if t4.w < 0.0 { -1.0 } else { 1.0 })
         });
         let p = barycentric(corners, bary);
+        // The largest absolute coordinate, lane by lane and then across the
+        // three lanes: maxima are exact, so for finite corners this is the
+        // number a fold over the nine coordinates gives.
+        let [ca, cb, cc] = corners.map(Vec3A::abs);
+        let magnitude = ca.max(cb).max(cc).max_element().max(0.0);
         let corners = corners.map(Vec3::from);
         Some(SurfaceInteraction {
             p: Vec3::from(p),
@@ -123,7 +128,7 @@ impl<'a> SurfaceInteraction<'a> {
             bary,
             corners,
             corner_normals,
-            magnitude: corners.iter().fold(0.0f32, |m, c| m.max(c.abs().max_element())),
+            magnitude,
             uv,
             color,
             tangent,
