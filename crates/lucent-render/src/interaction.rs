@@ -12,7 +12,7 @@
 
 use crate::RenderInstance;
 use lucent_accel::SceneHit;
-use lucent_geom::{TriMesh, Vec2, Vec3, Vec3A, Vec4, offset_ray_origin_scaled};
+use lucent_geom::{TriMesh, Vec2, Vec3, Vec3A, Vec4, offset_ray_origin_a, offset_ray_origin_scaled};
 use std::sync::Arc;
 
 /// A point on an instance's triangle, in render space.
@@ -175,6 +175,14 @@ impl<'a> SurfaceInteraction<'a> {
     #[inline]
     pub fn offset(&self, q: Vec3, n: Vec3) -> Vec3 {
         offset_ray_origin_scaled(q, n, self.magnitude)
+    }
+
+    /// [`SurfaceInteraction::offset`] on four-wide vectors (the fourth
+    /// lane means nothing): the same point, without conversions for a
+    /// caller that keeps its vectors that way.
+    #[inline]
+    pub fn offset_a(&self, q: Vec3A, n: Vec3A) -> Vec3A {
+        offset_ray_origin_a(q, n, self.magnitude)
     }
 }
 

@@ -64,7 +64,7 @@ use crate::flat::FlatBvh;
 use crate::interaction::SurfaceInteraction;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
-use lucent_geom::{Pcg32, Ray, Vec2, Vec3};
+use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A};
 use lucent_shading::{Bsdf, Frame, LocalDir, Material};
 
 /// Highest survival probability of Russian roulette.
@@ -255,20 +255,23 @@ impl<'a> PathTracer<'a> {
                 break;
             };
 
+            // The point and the geometric normal four-wide, as the light
+            // sample and the ray offsets take them.
+            let (p, ng) = (Vec3A::from(hit.p), Vec3A::from(hit.ng));
             // The hit point pushed off the surface to the side a shadow ray
             // left into, kept for the next segment if it leaves there too.
-            let mut lifted: Option<(bool, Vec3)> = None;
+            let mut lifted: Option<(bool, Vec3A)> = None;
 
             // Next-event estimation.
             if !bsdf.is_delta()
-                && let Some(ls) = lights.sample(hit.p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
-                && let Some(wi) = LocalDir::new(frame.to_local(ls.wi))
+                && let Some(ls) = lights.sample(p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
             {
                 let (f, bsdf_pdf) = bsdf.eval_pdf(wo_unit, wi);
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
-                    let out = ls.wi.dot(hit.ng) >= 0.0;
-                    let origin = hit.offset(hit.p, if out { hit.ng } else { -hit.ng });
+                    let out = ls.wi.dot(ng) >= 0.0;
+                    let origin = hit.offset_a(p, if out { ng } else { -ng });
                     lifted = Some((out, origin));
                     if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
                         && !self.occluded::<MASKED>(&shadow_ray, t_max)
@@ -308,12 +311,12 @@ impl<'a> PathTracer<'a> {
             } else {
                 stats.reflection += 1;
             }
-            let out = wi.dot(hit.ng) >= 0.0;
+            let out = Vec3A::from(wi).dot(ng) >= 0.0;
             let origin = match lifted {
                 Some((side, origin)) if side == out => origin,
-                _ => hit.offset(hit.p, if out { hit.ng } else { -hit.ng }),
+                _ => hit.offset_a(p, if out { ng } else { -ng }),
             };
-            ray = Ray::new(origin, wi);
+            ray = Ray::new(origin.into(), wi);
             prev_p = hit.p;
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
