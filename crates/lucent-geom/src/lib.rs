@@ -34,7 +34,7 @@ pub use mesh::{MeshError, TriMesh};
 pub use names::{Named, assert_table};
 pub use offset::{offset_ray_origin, offset_ray_origin_a, offset_ray_origin_scaled};
 pub use ray::Ray;
-pub use rng::{Pcg32, hash_u64};
+pub use rng::{Pcg32, hash_u64, hash_u64_from};
 pub use triangle::{
     PackHits, PreparedRay, TriangleHit, TrianglePack, TrianglePack4, TrianglePack8, TriangleTest, edge_f64,
     intersect_triangle, lane_triangle, plane_distance, triangle_normal,
