@@ -170,11 +170,13 @@ impl<'a> PathTracer<'a> {
     ) -> Vec3 {
         let scene = self.scene;
         let lights = &scene.light_set;
-        let mut radiance = Vec3::ZERO;
+        // Four-wide (the fourth lane means nothing): each lane makes the
+        // three-float products and sums, in their order.
+        let mut radiance = Vec3A::ZERO;
         if self.max_depth == 0 {
-            return radiance;
+            return radiance.into();
         }
-        let mut throughput = Vec3::ONE;
+        let mut throughput = Vec3A::ONE;
         let mut ray = camera_ray;
         stats.primary += 1;
         // The previous vertex, for weighting emission found by BSDF sampling.
@@ -196,7 +198,7 @@ impl<'a> PathTracer<'a> {
                         } else {
                             power_heuristic(prev_pdf, lights.pdf_environment(ray.dir))
                         };
-                        radiance += self.clamped(throughput * le * w, depth >= 2);
+                        radiance += self.clamped(throughput * Vec3A::from(le) * w, depth >= 2);
                         le
                     }
                     None => Vec3::ZERO,
@@ -219,7 +221,7 @@ impl<'a> PathTracer<'a> {
                     } else {
                         power_heuristic(prev_pdf, lights.pdf_emitter(index, prev_p, hit.p))
                     };
-                    radiance += self.clamped(throughput * le * w, depth >= 2);
+                    radiance += self.clamped(throughput * Vec3A::from(le) * w, depth >= 2);
                 }
             }
             if depth - free + 1 >= self.max_depth {
@@ -281,7 +283,10 @@ impl<'a> PathTracer<'a> {
                         } else {
                             power_heuristic(ls.pdf, bsdf_pdf)
                         };
-                        radiance += self.clamped(throughput * f * ls.value * (w / ls.pdf), depth >= 1);
+                        radiance += self.clamped(
+                            throughput * Vec3A::from(f) * Vec3A::from(ls.value) * (w / ls.pdf),
+                            depth >= 1,
+                        );
                     }
                 }
             }
@@ -291,7 +296,7 @@ impl<'a> PathTracer<'a> {
             let Some(bs) = bsdf.sample_local(wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
                 break;
             };
-            throughput *= bs.weight;
+            throughput *= Vec3A::from(bs.weight);
             if AOV && rec.pending() {
                 rec.specular_bounce(bs.weight);
             }
@@ -335,7 +340,7 @@ impl<'a> PathTracer<'a> {
                 throughput /= survive;
             }
         }
-        radiance
+        radiance.into()
     }
 
     /// `contribution` scaled down so that no channel exceeds the indirect
@@ -347,7 +352,7 @@ impl<'a> PathTracer<'a> {
     /// is, at the cost of one branch rather than a maximum and a select per
     /// contribution.
     #[inline(always)]
-    fn clamped(&self, contribution: Vec3, indirect: bool) -> Vec3 {
+    fn clamped(&self, contribution: Vec3A, indirect: bool) -> Vec3A {
         if !(indirect && self.clamp_indirect < f32::INFINITY) {
             return contribution;
         }
