@@ -81,7 +81,9 @@ impl<'a> SurfaceInteraction<'a> {
         // `triangle_normal`: (b - a) x (c - a).
         let ng = try_unit(to_render * (b - a).cross(c - a))?;
         let reads = instance.reads;
-        let normals = mesh.normals().filter(|_| reads.normals);
+        // The instance's flags first: a register test, and the mesh's
+        // attribute is only looked at when it is read.
+        let normals = if reads.normals { mesh.normals() } else { None };
         let (ns, corner_normals) = if CORNER_NORMALS {
             let ng = Vec3::from(ng);
             let corner_normals = normals.map(|n| {
@@ -101,15 +103,12 @@ impl<'a> SurfaceInteraction<'a> {
                 .unwrap_or(ng);
             (Vec3::from(ns), None)
         };
-        let uv = mesh
-            .uvs()
-            .filter(|_| reads.uvs)
-            .map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary));
-        let color = mesh
-            .colors()
-            .filter(|_| reads.colors)
-            .map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
-        let tangent = mesh.tangents().filter(|_| reads.tangents).map(|t| {
+        let uvs = if reads.uvs { mesh.uvs() } else { None };
+        let uv = uvs.map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary));
+        let colors = if reads.colors { mesh.colors() } else { None };
+        let color = colors.map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
+        let tangents = if reads.tangents { mesh.tangents() } else { None };
+        let tangent = tangents.map(|t| {
             let t4 = barycentric(idx.map(|i| t[i as usize]), bary);
             let dir = instance.render_from_object.transform_vector3(t4.truncate());
             dir.extend(if t4.w < 0.0 { -1.0 } else { 1.0 })
