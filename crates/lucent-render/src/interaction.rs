@@ -7,8 +7,9 @@
 //! transpose, so a mirroring transform keeps the side); an integrator that
 //! wants them facing the incoming ray turns them with
 //! [`SurfaceInteraction::face_forward`]. Building one never panics: a hit
-//! that names no instance, mesh or triangle, or a triangle without a
-//! normal, gives `None`.
+//! that names no instance, mesh or triangle, a triangle without a normal,
+//! or one whose corners lie past the mesh's positions, gives `None` (an
+//! optional attribute too short for its corners is treated as absent).
 
 use crate::RenderInstance;
 use lucent_accel::SceneHit;
@@ -73,7 +74,10 @@ impl<'a> SurfaceInteraction<'a> {
         // operations, in the same order, that the three-float code did
         // component by component, so the numbers are the same.
         let bary = Vec3::new(1.0 - hit.u - hit.v, hit.u, hit.v);
-        let positions = mesh.positions();
+        // The largest index is checked once against each attribute read,
+        // so the three reads of its corners need no check of their own.
+        let last = idx[0].max(idx[1]).max(idx[2]) as usize;
+        let positions = mesh.positions().get(..=last)?;
         let [a, b, c] = idx.map(|i| Vec3A::from(positions[i as usize]));
         let xf = &instance.render_from_object;
         let corners = [a, b, c].map(|p| xf.transform_point3a(p));
@@ -83,7 +87,11 @@ impl<'a> SurfaceInteraction<'a> {
         let reads = instance.reads;
         // The instance's flags first: a register test, and the mesh's
         // attribute is only looked at when it is read.
-        let normals = if reads.normals { mesh.normals() } else { None };
+        let normals = if reads.normals {
+            mesh.normals().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
         let (ns, corner_normals) = if CORNER_NORMALS {
             let ng = Vec3::from(ng);
             let corner_normals = normals.map(|n| {
@@ -103,11 +111,23 @@ impl<'a> SurfaceInteraction<'a> {
                 .unwrap_or(ng);
             (Vec3::from(ns), None)
         };
-        let uvs = if reads.uvs { mesh.uvs() } else { None };
+        let uvs = if reads.uvs {
+            mesh.uvs().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
         let uv = uvs.map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary));
-        let colors = if reads.colors { mesh.colors() } else { None };
+        let colors = if reads.colors {
+            mesh.colors().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
         let color = colors.map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
-        let tangents = if reads.tangents { mesh.tangents() } else { None };
+        let tangents = if reads.tangents {
+            mesh.tangents().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
         let tangent = tangents.map(|t| {
             let t4 = barycentric(idx.map(|i| t[i as usize]), bary);
             let dir = instance.render_from_object.transform_vector3(t4.truncate());
