@@ -32,7 +32,7 @@ fn an_obj_lamp_with_ke_is_an_area_light_seen_from_its_front_only() {
     assert!(
         emitters
             .iter()
-            .all(|e| e.n == -Vec3::Y && e.radiance == Vec3::new(3.0, 2.0, 1.0))
+            .all(|e| Vec3::from(e.n) == -Vec3::Y && e.radiance == Vec3::new(3.0, 2.0, 1.0))
     );
     // Seen from below (the camera is 60 degrees under the lamp's centre,
     // a 10 degree view inside the quad): every pixel is the lamp's Ke.

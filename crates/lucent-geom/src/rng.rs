@@ -45,7 +45,20 @@ impl Pcg32 {
 /// (splitmix64 finaliser applied after each word). Used to key per-pixel RNG
 /// streams so that results do not depend on thread scheduling.
 pub fn hash_u64(words: &[u64]) -> u64 {
-    let mut h: u64 = 0x9E37_79B9_7F4A_7C15;
+    hash_u64_from(0x9E37_79B9_7F4A_7C15, words)
+}
+
+/// [`hash_u64`] carried on from `h`, the hash of the words before `words`:
+/// `hash_u64_from(hash_u64(a), b)` is `hash_u64` of `a` followed by `b`. A
+/// key's fixed leading words (a render's seed, a pixel) are then hashed
+/// once, not once per key.
+///
+/// ```
+/// use lucent_geom::{hash_u64, hash_u64_from};
+/// assert_eq!(hash_u64_from(hash_u64(&[7, 8]), &[9]), hash_u64(&[7, 8, 9]));
+/// ```
+#[inline]
+pub fn hash_u64_from(mut h: u64, words: &[u64]) -> u64 {
     for &w in words {
         h ^= w;
         h = h.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -90,5 +103,8 @@ mod tests {
         assert_ne!(hash_u64(&[1, 2, 3]), hash_u64(&[1, 2, 4]));
         assert_ne!(hash_u64(&[1, 2]), hash_u64(&[2, 1]));
         assert_eq!(hash_u64(&[5, 6]), hash_u64(&[5, 6]));
+        assert_eq!(hash_u64_from(hash_u64(&[]), &[5, 6]), hash_u64(&[5, 6]));
+        assert_eq!(hash_u64_from(hash_u64(&[5]), &[6]), hash_u64(&[5, 6]));
+        assert_eq!(hash_u64_from(hash_u64(&[5, 6]), &[]), hash_u64(&[5, 6]));
     }
 }

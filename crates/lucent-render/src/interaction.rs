@@ -7,12 +7,13 @@
 //! transpose, so a mirroring transform keeps the side); an integrator that
 //! wants them facing the incoming ray turns them with
 //! [`SurfaceInteraction::face_forward`]. Building one never panics: a hit
-//! that names no instance, mesh or triangle, or a triangle without a
-//! normal, gives `None`.
+//! that names no instance, mesh or triangle, a triangle without a normal,
+//! or one whose corners lie past the mesh's positions, gives `None` (an
+//! optional attribute too short for its corners is treated as absent).
 
 use crate::RenderInstance;
 use lucent_accel::SceneHit;
-use lucent_geom::{TriMesh, Vec2, Vec3, Vec3A, Vec4, offset_ray_origin_scaled};
+use lucent_geom::{TriMesh, Vec2, Vec3, Vec3A, Vec4, offset_ray_origin_a, offset_ray_origin_scaled};
 use std::sync::Arc;
 
 /// A point on an instance's triangle, in render space.
@@ -73,7 +74,10 @@ impl<'a> SurfaceInteraction<'a> {
         // operations, in the same order, that the three-float code did
         // component by component, so the numbers are the same.
         let bary = Vec3::new(1.0 - hit.u - hit.v, hit.u, hit.v);
-        let positions = mesh.positions();
+        // The largest index is checked once against each attribute read,
+        // so the three reads of its corners need no check of their own.
+        let last = idx[0].max(idx[1]).max(idx[2]) as usize;
+        let positions = mesh.positions().get(..=last)?;
         let [a, b, c] = idx.map(|i| Vec3A::from(positions[i as usize]));
         let xf = &instance.render_from_object;
         let corners = [a, b, c].map(|p| xf.transform_point3a(p));
@@ -81,7 +85,13 @@ impl<'a> SurfaceInteraction<'a> {
         // `triangle_normal`: (b - a) x (c - a).
         let ng = try_unit(to_render * (b - a).cross(c - a))?;
         let reads = instance.reads;
-        let normals = mesh.normals().filter(|_| reads.normals);
+        // The instance's flags first: a register test, and the mesh's
+        // attribute is only looked at when it is read.
+        let normals = if reads.normals {
+            mesh.normals().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
         let (ns, corner_normals) = if CORNER_NORMALS {
             let ng = Vec3::from(ng);
             let corner_normals = normals.map(|n| {
@@ -101,20 +111,34 @@ impl<'a> SurfaceInteraction<'a> {
                 .unwrap_or(ng);
             (Vec3::from(ns), None)
         };
-        let uv = mesh
-            .uvs()
-            .filter(|_| reads.uvs)
-            .map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary));
-        let color = mesh
-            .colors()
-            .filter(|_| reads.colors)
-            .map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
-        let tangent = mesh.tangents().filter(|_| reads.tangents).map(|t| {
+        let uvs = if reads.uvs {
+            mesh.uvs().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
+        let uv = uvs.map(|uv| barycentric(idx.map(|i| uv[i as usize]), bary));
+        let colors = if reads.colors {
+            mesh.colors().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
+        let color = colors.map(|c| barycentric(idx.map(|i| c[i as usize]), bary));
+        let tangents = if reads.tangents {
+            mesh.tangents().and_then(|n| n.get(..=last))
+        } else {
+            None
+        };
+        let tangent = tangents.map(|t| {
             let t4 = barycentric(idx.map(|i| t[i as usize]), bary);
             let dir = instance.render_from_object.transform_vector3(t4.truncate());
             dir.extend(if t4.w < 0.0 { -1.0 } else { 1.0 })
         });
         let p = barycentric(corners, bary);
+        // The largest absolute coordinate, lane by lane and then across the
+        // three lanes: maxima are exact, so for finite corners this is the
+        // number a fold over the nine coordinates gives.
+        let [ca, cb, cc] = corners.map(Vec3A::abs);
+        let magnitude = ca.max(cb).max(cc).max_element().max(0.0);
         let corners = corners.map(Vec3::from);
         Some(SurfaceInteraction {
             p: Vec3::from(p),
@@ -123,7 +147,7 @@ impl<'a> SurfaceInteraction<'a> {
             bary,
             corners,
             corner_normals,
-            magnitude: corners.iter().fold(0.0f32, |m, c| m.max(c.abs().max_element())),
+            magnitude,
             uv,
             color,
             tangent,
@@ -170,6 +194,14 @@ impl<'a> SurfaceInteraction<'a> {
     #[inline]
     pub fn offset(&self, q: Vec3, n: Vec3) -> Vec3 {
         offset_ray_origin_scaled(q, n, self.magnitude)
+    }
+
+    /// [`SurfaceInteraction::offset`] on four-wide vectors (the fourth
+    /// lane means nothing): the same point, without conversions for a
+    /// caller that keeps its vectors that way.
+    #[inline]
+    pub fn offset_a(&self, q: Vec3A, n: Vec3A) -> Vec3A {
+        offset_ray_origin_a(q, n, self.magnitude)
     }
 }
 

@@ -23,7 +23,7 @@ use crate::RenderInstance;
 use crate::envlight::EnvLight;
 use crate::interaction::SurfaceInteraction;
 use lucent_accel::SceneHit;
-use lucent_geom::{Ray, TriMesh, Vec2, Vec3, offset_ray_origin_scaled};
+use lucent_geom::{Ray, TriMesh, Vec2, Vec3, Vec3A, offset_ray_origin_a};
 use lucent_shading::{Light, Material, Texture};
 use std::sync::Arc;
 
@@ -44,22 +44,26 @@ pub(crate) fn emits(m: &Material) -> bool {
 
 /// One emissive triangle in render space; a degenerate one (no normal or
 /// no area) is all zeros but its radiance, and is never picked.
+///
+/// Its geometry is four-wide ([`Vec3A`], the fourth lane meaningless), as
+/// light sampling computes with it: loaded whole, not assembled from three
+/// floats at every sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Emitter {
     /// First corner.
-    pub p0: Vec3,
+    pub p0: Vec3A,
     /// Second corner minus the first.
-    pub e1: Vec3,
+    pub e1: Vec3A,
     /// Third corner minus the first.
-    pub e2: Vec3,
+    pub e2: Vec3A,
     /// Unit normal of the emitting side (zero for a degenerate triangle).
-    pub n: Vec3,
+    pub n: Vec3A,
     /// Area.
     pub area: f32,
     /// Emitted radiance.
     pub radiance: Vec3,
     /// Largest corner coordinate magnitude, which scales the offset of a
-    /// shadow ray's end off the triangle ([`offset_ray_origin_scaled`]).
+    /// shadow ray's end off the triangle ([`offset_ray_origin_a`]).
     pub magnitude: f32,
     /// Texture coordinates of the corners (zero without an emission map).
     pub uv: [Vec2; 3],
@@ -73,16 +77,20 @@ pub struct Emitter {
 }
 
 /// A point chosen on a light, as seen from a shading point.
+///
+/// The vectors are four-wide ([`Vec3A`]; the fourth lane means nothing):
+/// the path tracer keeps its points and directions that way, so the
+/// sample and its shadow ray cost no conversions.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightSample {
     /// Unit direction from the shading point towards the light.
-    pub wi: Vec3,
+    pub wi: Vec3A,
     /// Distance to the sampled point (infinite for a directional light).
     pub distance: f32,
     /// The point on the light (meaningless for a directional light).
-    pub point: Vec3,
+    pub point: Vec3A,
     /// The light's normal at `point` (zero for point and directional lights).
-    pub normal: Vec3,
+    pub normal: Vec3A,
     /// Largest corner coordinate magnitude of the emitter `point` lies on
     /// (zero for point and directional lights); see [`LightSample::shadow_ray`].
     pub magnitude: f32,
@@ -113,11 +121,11 @@ impl LightSample {
     /// at scale 1e-3, ten box sizes away). A directional light gives `wi`
     /// and an infinite distance; `None` when the ray has no direction.
     #[inline(always)]
-    pub fn shadow_ray(&self, origin: Vec3) -> Option<(Ray, f32)> {
+    pub fn shadow_ray(&self, origin: Vec3A) -> Option<(Ray, f32)> {
         if !self.distance.is_finite() {
-            return Some((Ray::new(origin, self.wi), f32::INFINITY));
+            return Some((Ray::new(origin.into(), self.wi.into()), f32::INFINITY));
         }
-        let target = if self.normal == Vec3::ZERO {
+        let target = if self.normal == Vec3A::ZERO {
             self.point
         } else {
             let side = if self.normal.dot(origin - self.point) >= 0.0 {
@@ -125,12 +133,17 @@ impl LightSample {
             } else {
                 -self.normal
             };
-            offset_ray_origin_scaled(self.point, side, self.magnitude)
+            offset_ray_origin_a(self.point, side, self.magnitude)
         };
         let d = target - origin;
         let dist = d.length();
         // Positive and finite, tested by comparisons (NaN fails both).
-        (dist > 0.0 && dist <= f32::MAX).then(|| (Ray::new(origin, d / dist), dist * (1.0 - SHADOW_SHORTEN)))
+        (dist > 0.0 && dist <= f32::MAX).then(|| {
+            (
+                Ray::new(origin.into(), (d / dist).into()),
+                dist * (1.0 - SHADOW_SHORTEN),
+            )
+        })
     }
 }
 
@@ -224,10 +237,10 @@ impl LightSet {
                         let [a, b, c] = si.corners;
                         let area = 0.5 * (b - a).cross(c - a).length();
                         (area.is_finite() && area > 0.0).then(|| Emitter {
-                            p0: a,
-                            e1: b - a,
-                            e2: c - a,
-                            n: if si.ns.dot(si.ng) < 0.0 { -si.ng } else { si.ng },
+                            p0: a.into(),
+                            e1: (b - a).into(),
+                            e2: (c - a).into(),
+                            n: if si.ns.dot(si.ng) < 0.0 { -si.ng } else { si.ng }.into(),
                             area,
                             radiance: emission,
                             magnitude: si.magnitude,
@@ -238,10 +251,10 @@ impl LightSet {
                         })
                     })
                     .unwrap_or(Emitter {
-                        p0: Vec3::ZERO,
-                        e1: Vec3::ZERO,
-                        e2: Vec3::ZERO,
-                        n: Vec3::ZERO,
+                        p0: Vec3A::ZERO,
+                        e1: Vec3A::ZERO,
+                        e2: Vec3A::ZERO,
+                        n: Vec3A::ZERO,
                         area: 0.0,
                         radiance: emission,
                         magnitude: 0.0,
@@ -395,7 +408,7 @@ impl LightSet {
     /// emitting side (both for a two-sided one), black behind.
     #[inline]
     pub fn emitted(&self, e: &Emitter, wo: Vec3, uv: Option<Vec2>) -> Vec3 {
-        if !(e.two_sided || e.n.dot(wo) > 0.0) {
+        if !(e.two_sided || e.n.dot(wo.into()) > 0.0) {
             return Vec3::ZERO;
         }
         match (self.maps.get(e.map as usize), uv) {
@@ -412,7 +425,7 @@ impl LightSet {
         let (Some(e), Some(&p)) = (self.emitters.get(index as usize), self.prob.get(index as usize)) else {
             return 0.0;
         };
-        let d = point - from;
+        let d = Vec3A::from(point - from);
         let dist2 = d.length_squared();
         let cos = (e.n.dot(d) / dist2.sqrt()).abs();
         let pdf = p * dist2 / (e.area * cos);
@@ -427,7 +440,7 @@ impl LightSet {
     /// `from`; `None` when there is no light, the pick has zero density, or
     /// the point is behind an emitter.
     #[inline(always)]
-    pub fn sample(&self, from: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
+    pub fn sample(&self, from: Vec3A, u_pick: f32, u: Vec2) -> Option<LightSample> {
         if self.cdf.is_empty() {
             return None;
         }
@@ -440,6 +453,9 @@ impl LightSet {
             // Uniform over the triangle (Shirley's square-root map).
             let s = u.x.sqrt();
             let (b1, b2) = (1.0 - s, u.y * s);
+            // Four-wide: each lane makes the operations of the three-float
+            // formulas, in their order, so the numbers are theirs.
+            let n = e.n;
             let point = e.p0 + e.e1 * b1 + e.e2 * b2;
             let d = point - from;
             let dist2 = d.length_squared();
@@ -449,7 +465,7 @@ impl LightSet {
                 return None;
             }
             let wi = d / dist;
-            let cos = if e.two_sided { e.n.dot(wi).abs() } else { -e.n.dot(wi) };
+            let cos = if e.two_sided { n.dot(wi).abs() } else { -n.dot(wi) };
             if cos <= 0.0 {
                 return None;
             }
@@ -464,7 +480,7 @@ impl LightSet {
                 wi,
                 distance: dist,
                 point,
-                normal: e.n,
+                normal: n,
                 magnitude: e.magnitude,
                 value,
                 pdf: p * dist2 / (e.area * cos),
@@ -473,23 +489,25 @@ impl LightSet {
         }
         let Some(light) = self.lights.get(idx - self.emitters.len()) else {
             let s = self.environment.as_ref()?.sample(u)?;
+            let wi = Vec3A::from(s.wi);
             return Some(LightSample {
-                wi: s.wi,
+                wi,
                 distance: f32::INFINITY,
-                point: from + s.wi * f32::MAX,
-                normal: Vec3::ZERO,
+                point: from + wi * f32::MAX,
+                normal: Vec3A::ZERO,
                 magnitude: 0.0,
                 value: s.radiance,
                 pdf: p * s.pdf,
                 delta: false,
             });
         };
-        let s = light.sample(from)?;
+        let s = light.sample(from.into())?;
+        let wi = Vec3A::from(s.to_light);
         Some(LightSample {
-            wi: s.to_light,
+            wi,
             distance: s.distance,
-            point: from + s.to_light * s.distance.min(f32::MAX),
-            normal: Vec3::ZERO,
+            point: from + wi * s.distance.min(f32::MAX),
+            normal: Vec3A::ZERO,
             magnitude: 0.0,
             value: s.intensity,
             pdf: p,
@@ -565,7 +583,7 @@ mod tests {
         let Some((_, e)) = set.emitter(0, 1) else {
             panic!("emitter")
         };
-        assert_eq!((e.n, e.area), (-Vec3::Y, 2.0));
+        assert_eq!((e.n, e.area), (-Vec3A::Y, 2.0));
         assert_eq!(set.emitted(e, -Vec3::Y, None), Vec3::splat(2.0));
         assert_eq!(set.emitted(e, Vec3::Y, None), Vec3::ZERO, "one-sided");
     }
@@ -583,13 +601,13 @@ mod tests {
         let mut sum = 0.0f64;
         for _ in 0..n {
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
-            let Some(s) = set.sample(Vec3::ZERO, rng.next_f32(), u) else {
+            let Some(s) = set.sample(Vec3A::ZERO, rng.next_f32(), u) else {
                 panic!("sample")
             };
             sum += 1.0 / s.pdf as f64;
             // Triangle 0 covers x > z, triangle 1 the rest.
             let i = set.emitter(0, u32::from(s.point.x <= s.point.z)).map_or(9, |(i, _)| i);
-            let pdf = set.pdf_emitter(i, Vec3::ZERO, s.point);
+            let pdf = set.pdf_emitter(i, Vec3::ZERO, s.point.into());
             assert!((pdf - s.pdf).abs() <= 1e-4 * s.pdf, "{pdf} vs {}", s.pdf);
         }
         let exact = 2.0 * std::f64::consts::PI / 3.0;
@@ -599,7 +617,7 @@ mod tests {
             sum / n as f64
         );
         assert!(
-            set.sample(Vec3::new(0.0, 2.0, 0.0), 0.5, Vec2::splat(0.5)).is_none(),
+            set.sample(Vec3A::new(0.0, 2.0, 0.0), 0.5, Vec2::splat(0.5)).is_none(),
             "behind"
         );
     }
@@ -613,16 +631,16 @@ mod tests {
             intensity: Vec3::splat(3.0),
         }];
         let set = LightSet::new(&meshes, &[emissive(1.0)], &[instance(0, 0)], &lights, 1.0);
-        let s = set.sample(Vec3::ZERO, 0.9, Vec2::splat(0.5));
+        let s = set.sample(Vec3A::ZERO, 0.9, Vec2::splat(0.5));
         let Some(s) = s else { panic!("sample") };
         assert!(s.delta && (s.pdf - 0.75).abs() < 1e-6 && (s.value - Vec3::splat(3.0 / 25.0)).length() < 1e-6);
-        let Some(s) = set.sample(Vec3::ZERO, 0.1, Vec2::splat(0.5)) else {
+        let Some(s) = set.sample(Vec3A::ZERO, 0.1, Vec2::splat(0.5)) else {
             panic!("sample")
         };
-        assert!(!s.delta && s.normal == -Vec3::Y);
+        assert!(!s.delta && s.normal == -Vec3A::Y);
         // Nothing emits: nothing to sample, and no panic.
         let dark = LightSet::new(&meshes, &[Material::default()], &[instance(0, 0)], &[], 1.0);
-        assert!(dark.is_empty() && dark.sample(Vec3::ZERO, 0.5, Vec2::ZERO).is_none());
+        assert!(dark.is_empty() && dark.sample(Vec3A::ZERO, 0.5, Vec2::ZERO).is_none());
     }
 }
 
@@ -680,7 +698,7 @@ mod emission_map_tests {
         assert!(e.map_mean.x > 0.0 && e.map_mean.x < 1.0, "{}", e.map_mean);
         // A light sample's value is the map at the sampled point.
         let s = one
-            .sample(Vec3::ZERO, 0.1, Vec2::new(0.9, 0.1))
+            .sample(Vec3A::ZERO, 0.1, Vec2::new(0.9, 0.1))
             .unwrap_or_else(|| panic!("sample"));
         let expected = 4.0 * ((s.point.x + 1.0) * 0.5 * 2.0 - 0.5).clamp(0.0, 1.0);
         assert!((s.value.x - expected).abs() < 1e-4, "{} vs {expected}", s.value.x);
@@ -690,9 +708,13 @@ mod emission_map_tests {
         };
         assert_eq!(two.emitted(e2, Vec3::Y, Some(Vec2::new(1.0, 0.5))), Vec3::splat(4.0));
         assert!(
-            two.sample(Vec3::new(0.0, 2.0, 0.0), 0.1, Vec2::new(0.9, 0.1)).is_some(),
+            two.sample(Vec3A::new(0.0, 2.0, 0.0), 0.1, Vec2::new(0.9, 0.1))
+                .is_some(),
             "seen from above"
         );
-        assert!(one.sample(Vec3::new(0.0, 2.0, 0.0), 0.1, Vec2::new(0.9, 0.1)).is_none());
+        assert!(
+            one.sample(Vec3A::new(0.0, 2.0, 0.0), 0.1, Vec2::new(0.9, 0.1))
+                .is_none()
+        );
     }
 }

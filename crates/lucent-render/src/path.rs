@@ -64,7 +64,7 @@ use crate::flat::FlatBvh;
 use crate::interaction::SurfaceInteraction;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
-use lucent_geom::{Pcg32, Ray, Vec2, Vec3};
+use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A};
 use lucent_shading::{Bsdf, Frame, LocalDir, Material};
 
 /// Highest survival probability of Russian roulette.
@@ -170,11 +170,13 @@ impl<'a> PathTracer<'a> {
     ) -> Vec3 {
         let scene = self.scene;
         let lights = &scene.light_set;
-        let mut radiance = Vec3::ZERO;
+        // Four-wide (the fourth lane means nothing): each lane makes the
+        // three-float products and sums, in their order.
+        let mut radiance = Vec3A::ZERO;
         if self.max_depth == 0 {
-            return radiance;
+            return radiance.into();
         }
-        let mut throughput = Vec3::ONE;
+        let mut throughput = Vec3A::ONE;
         let mut ray = camera_ray;
         stats.primary += 1;
         // The previous vertex, for weighting emission found by BSDF sampling.
@@ -196,7 +198,7 @@ impl<'a> PathTracer<'a> {
                         } else {
                             power_heuristic(prev_pdf, lights.pdf_environment(ray.dir))
                         };
-                        radiance += self.clamped(throughput * le * w, depth >= 2);
+                        radiance += self.clamped(throughput * Vec3A::from(le) * w, depth >= 2);
                         le
                     }
                     None => Vec3::ZERO,
@@ -219,7 +221,7 @@ impl<'a> PathTracer<'a> {
                     } else {
                         power_heuristic(prev_pdf, lights.pdf_emitter(index, prev_p, hit.p))
                     };
-                    radiance += self.clamped(throughput * le * w, depth >= 2);
+                    radiance += self.clamped(throughput * Vec3A::from(le) * w, depth >= 2);
                 }
             }
             if depth - free + 1 >= self.max_depth {
@@ -255,20 +257,23 @@ impl<'a> PathTracer<'a> {
                 break;
             };
 
+            // The point and the geometric normal four-wide, as the light
+            // sample and the ray offsets take them.
+            let (p, ng) = (Vec3A::from(hit.p), Vec3A::from(hit.ng));
             // The hit point pushed off the surface to the side a shadow ray
             // left into, kept for the next segment if it leaves there too.
-            let mut lifted: Option<(bool, Vec3)> = None;
+            let mut lifted: Option<(bool, Vec3A)> = None;
 
             // Next-event estimation.
             if !bsdf.is_delta()
-                && let Some(ls) = lights.sample(hit.p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
-                && let Some(wi) = LocalDir::new(frame.to_local(ls.wi))
+                && let Some(ls) = lights.sample(p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
             {
                 let (f, bsdf_pdf) = bsdf.eval_pdf(wo_unit, wi);
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
-                    let out = ls.wi.dot(hit.ng) >= 0.0;
-                    let origin = hit.offset(hit.p, if out { hit.ng } else { -hit.ng });
+                    let out = ls.wi.dot(ng) >= 0.0;
+                    let origin = hit.offset_a(p, if out { ng } else { -ng });
                     lifted = Some((out, origin));
                     if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
                         && !self.occluded::<MASKED>(&shadow_ray, t_max)
@@ -278,7 +283,10 @@ impl<'a> PathTracer<'a> {
                         } else {
                             power_heuristic(ls.pdf, bsdf_pdf)
                         };
-                        radiance += self.clamped(throughput * f * ls.value * (w / ls.pdf), depth >= 1);
+                        radiance += self.clamped(
+                            throughput * Vec3A::from(f) * Vec3A::from(ls.value) * (w / ls.pdf),
+                            depth >= 1,
+                        );
                     }
                 }
             }
@@ -288,7 +296,7 @@ impl<'a> PathTracer<'a> {
             let Some(bs) = bsdf.sample_local(wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
                 break;
             };
-            throughput *= bs.weight;
+            throughput *= Vec3A::from(bs.weight);
             if AOV && rec.pending() {
                 rec.specular_bounce(bs.weight);
             }
@@ -308,12 +316,12 @@ impl<'a> PathTracer<'a> {
             } else {
                 stats.reflection += 1;
             }
-            let out = wi.dot(hit.ng) >= 0.0;
+            let out = Vec3A::from(wi).dot(ng) >= 0.0;
             let origin = match lifted {
                 Some((side, origin)) if side == out => origin,
-                _ => hit.offset(hit.p, if out { hit.ng } else { -hit.ng }),
+                _ => hit.offset_a(p, if out { ng } else { -ng }),
             };
-            ray = Ray::new(origin, wi);
+            ray = Ray::new(origin.into(), wi);
             prev_p = hit.p;
             prev_pdf = bs.pdf;
             prev_delta = bs.delta;
@@ -332,16 +340,24 @@ impl<'a> PathTracer<'a> {
                 throughput /= survive;
             }
         }
-        radiance
+        radiance.into()
     }
 
     /// `contribution` scaled down so that no channel exceeds the indirect
     /// clamp, when it is `indirect` (light that reached the first surface
     /// by way of another bounce) and a clamp is set; else unchanged.
+    ///
+    /// Without a clamp (an infinite one, the default) nothing is compared:
+    /// no channel exceeds infinity, so the contribution is returned as it
+    /// is, at the cost of one branch rather than a maximum and a select per
+    /// contribution.
     #[inline(always)]
-    fn clamped(&self, contribution: Vec3, indirect: bool) -> Vec3 {
+    fn clamped(&self, contribution: Vec3A, indirect: bool) -> Vec3A {
+        if !(indirect && self.clamp_indirect < f32::INFINITY) {
+            return contribution;
+        }
         let m = contribution.max_element();
-        if indirect && m > self.clamp_indirect {
+        if m > self.clamp_indirect {
             contribution * (self.clamp_indirect / m)
         } else {
             contribution

@@ -432,10 +432,11 @@ fn light_pixels(scene: &RenderScene, camera: &PinholeCamera) -> Vec<bool> {
     let eye = Vec3::from(camera.render_from_camera.translation);
     let k = camera.intrinsics;
     for e in scene.light_set.emitters() {
-        if e.area <= 0.0 || !(e.two_sided || e.n.dot(eye - e.p0) > 0.0) {
+        let (p0, e1, e2) = (Vec3::from(e.p0), Vec3::from(e.e1), Vec3::from(e.e2));
+        if e.area <= 0.0 || !(e.two_sided || Vec3::from(e.n).dot(eye - p0) > 0.0) {
             continue;
         }
-        let corners = [e.p0, e.p0 + e.e1, e.p0 + e.e2];
+        let corners = [p0, p0 + e1, p0 + e2];
         let mut lo = [f32::INFINITY; 2];
         let mut hi = [f32::NEG_INFINITY; 2];
         let mut behind = false;

@@ -4,7 +4,7 @@ use crate::aov::{AovFilm, AovSample};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
-use lucent_geom::{Pcg32, Ray, Vec3, hash_u64};
+use lucent_geom::{Pcg32, Ray, Vec3, hash_u64, hash_u64_from};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -229,11 +229,17 @@ enum Tracer<'a> {
 /// the sample streams by (seed, pixel, sample), shared by the uniform
 /// passes here and the adaptive ones in `progressive`, so both take the
 /// very same samples.
+///
+/// A stream's key is `hash_u64(&[seed, pixel, sample])`, hashed a word at
+/// a time: the seed once per sampler, the pixel once per pixel
+/// ([`PixelSampler::pixel_key`]) where the caller keeps it for the pixel's
+/// samples, and the sample index per sample.
 pub(crate) struct PixelSampler<'a> {
     camera: PinholeCamera,
     tracer: Tracer<'a>,
     width: u64,
-    seed: u64,
+    /// `hash_u64(&[seed])`, which every key continues.
+    seed_hash: u64,
 }
 
 impl<'a> PixelSampler<'a> {
@@ -248,23 +254,38 @@ impl<'a> PixelSampler<'a> {
             camera,
             tracer,
             width: u64::from(width),
-            seed: settings.seed,
+            seed_hash: hash_u64(&[settings.seed]),
         }
     }
 
-    /// Whether [`PixelSampler::sample_aov`] records AOVs (the path tracer).
+    /// `hash_u64(&[seed, pixel])` for pixel (`col`, `row`): what
+    /// [`PixelSampler::sample_keyed`] continues with the sample index.
+    #[inline]
+    pub(crate) fn pixel_key(&self, col: u32, row: u32) -> u64 {
+        hash_u64_from(self.seed_hash, &[u64::from(row) * self.width + u64::from(col)])
+    }
+
+    /// Whether [`PixelSampler::sample_aov_keyed`] records AOVs (the path tracer).
     pub(crate) fn records_aovs(&self) -> bool {
         matches!(self.tracer, Tracer::Path(_))
     }
 
-    /// [`PixelSampler::sample`] that also records the sample's AOVs (path
-    /// tracer; the Whitted integrator leaves `aov` as it is).
+    /// [`PixelSampler::sample_keyed`] that also records the sample's AOVs
+    /// (path tracer; the Whitted integrator leaves `aov` as it is).
     #[inline]
-    pub(crate) fn sample_aov(&self, col: u32, row: u32, s: u32, stats: &mut RayStats, aov: &mut AovSample) -> Vec3 {
+    fn sample_aov_keyed(
+        &self,
+        key: u64,
+        col: u32,
+        row: u32,
+        s: u32,
+        stats: &mut RayStats,
+        aov: &mut AovSample,
+    ) -> Vec3 {
         match &self.tracer {
-            Tracer::Whitted(_) => self.sample(col, row, s, stats),
+            Tracer::Whitted(_) => self.sample_keyed(key, col, row, s, stats),
             Tracer::Path(path) => {
-                let (ray, mut rng) = self.path_start(col, row, s);
+                let (ray, mut rng) = self.path_start_keyed(key, col, row, s);
                 path.trace_primary_aov(ray, &mut rng, stats, aov)
             }
         }
@@ -275,8 +296,13 @@ impl<'a> PixelSampler<'a> {
     /// over the pixel (a box filter), keyed by (seed, pixel, sample).
     #[inline]
     pub(crate) fn path_start(&self, col: u32, row: u32, s: u32) -> (Ray, Pcg32) {
-        let pixel_idx = u64::from(row) * self.width + u64::from(col);
-        let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
+        self.path_start_keyed(self.pixel_key(col, row), col, row, s)
+    }
+
+    /// [`PixelSampler::path_start`] with the pixel's key already made.
+    #[inline]
+    fn path_start_keyed(&self, key: u64, col: u32, row: u32, s: u32) -> (Ray, Pcg32) {
+        let mut rng = Pcg32::new(hash_u64_from(key, &[u64::from(s)]), 0);
         let (jx, jy) = (rng.next_f32(), rng.next_f32());
         (self.camera.ray(col as f32 + jx, row as f32 + jy), rng)
     }
@@ -284,20 +310,26 @@ impl<'a> PixelSampler<'a> {
     /// Radiance of sample `s` of pixel (`col`, `row`).
     #[inline]
     pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
+        self.sample_keyed(self.pixel_key(col, row), col, row, s, stats)
+    }
+
+    /// [`PixelSampler::sample`] with the pixel's key (from
+    /// [`PixelSampler::pixel_key`]) already made.
+    #[inline]
+    pub(crate) fn sample_keyed(&self, key: u64, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
         match &self.tracer {
             Tracer::Whitted(whitted) => {
                 let (jx, jy) = if s == 0 {
                     (0.5, 0.5)
                 } else {
-                    let pixel_idx = u64::from(row) * self.width + u64::from(col);
-                    let mut rng = Pcg32::new(hash_u64(&[self.seed, pixel_idx, u64::from(s)]), 0);
+                    let mut rng = Pcg32::new(hash_u64_from(key, &[u64::from(s)]), 0);
                     (rng.next_f32(), rng.next_f32())
                 };
                 let ray = self.camera.ray(col as f32 + jx, row as f32 + jy);
                 whitted.trace_primary(ray, stats)
             }
             Tracer::Path(path) => {
-                let (ray, mut rng) = self.path_start(col, row, s);
+                let (ray, mut rng) = self.path_start_keyed(key, col, row, s);
                 path.trace_primary(ray, &mut rng, stats)
             }
         }
@@ -325,8 +357,10 @@ fn trace_rows(
                 return stats;
             }
             for (col, px) in pixels.iter_mut().enumerate() {
+                let (col, row) = (col as u32, row as u32);
+                let key = sampler.pixel_key(col, row);
                 for s in samples.clone() {
-                    px.add_sample(sampler.sample(col as u32, row as u32, s, &mut stats));
+                    px.add_sample(sampler.sample_keyed(key, col, row, s, &mut stats));
                 }
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
@@ -366,9 +400,11 @@ fn trace_rows_aov(
             }
             let aov_pixels = albedo.iter_mut().zip(normal.iter_mut()).zip(depth.iter_mut());
             for (col, (px, ((a, n), d))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
+                let (col, row) = (col as u32, row as u32);
+                let key = sampler.pixel_key(col, row);
                 for s in samples.clone() {
                     let mut aov = AovSample::default();
-                    px.add_sample(sampler.sample_aov(col as u32, row as u32, s, &mut stats, &mut aov));
+                    px.add_sample(sampler.sample_aov_keyed(key, col, row, s, &mut stats, &mut aov));
                     aov.add_to(a, n, d);
                 }
             }

@@ -227,7 +227,11 @@ fn without_environment_sampling_the_light_set_never_picks_it() {
     assert_eq!(set.pdf_environment(Vec3::X), 0.0);
     let mut rng = Pcg32::new(3, 3);
     for _ in 0..1000 {
-        let s = set.sample(Vec3::ZERO, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+        let s = set.sample(
+            lucent_geom::Vec3A::ZERO,
+            rng.next_f32(),
+            Vec2::new(rng.next_f32(), rng.next_f32()),
+        );
         assert!(s.is_some_and(|s| s.delta && (s.pdf - 1.0).abs() < 1e-5), "{s:?}");
     }
     let mut alone = LightSet::with_environment(&[], &[], &[], &[], Some(env), 1.0);
