@@ -21,6 +21,13 @@
 //! Device errors become [`DenoiseError::Oidn`] with OIDN's message.
 //! [`Denoiser::denoise_render`] keeps the emitters the camera sees out of
 //! the filter and puts them back antialiased ([`emission`]).
+//! When the guides carry a specular split ([`lucent_render::aov`]: the
+//! light a mixed surface such as a varnished floor shows by its mirror or
+//! glass lobe), [`Denoiser::denoise_guided`] and the calls built on it run
+//! the filter twice: on the image less that light, with the guides of the
+//! surface seen, and on that light, with the guides of what it mirrors;
+//! then add the two. Without a split (no such surface in view) it runs
+//! once, as for any image.
 //! All `unsafe` code is in `ffi.rs`.
 //!
 //! ```no_run

@@ -18,10 +18,27 @@
 //! far as its albedo; a path that leaves the scene first records the
 //! background (clamped) as albedo, a zero normal and no depth.
 //!
+//! **The specular split.** When a path leaves that guide surface by a
+//! delta lobe (the mirror of a varnished floor, the glass of a translucent
+//! sphere: a surface that also has a smooth lobe, so the guides stop there),
+//! the light it gathers from then on is recorded apart
+//! ([`AovSample::specular`]), with guides of its own recorded as above at
+//! the first non-specular surface that bounce leads to
+//! ([`SpecularGuide`]: the albedo there times the delta lobe's colour,
+//! and the normal there; the background, or the last specular surface,
+//! where the path finds none). The specular radiance is a part of the
+//! sample's radiance (the rest is the radiance less it); to a denoiser
+//! the mirror image is then an image of the mirrored surfaces, not noise on
+//! a flat floor. A path that leaves the guide surface by another lobe
+//! records no specular part.
+//!
 //! [`AovFilm`] sums the samples of each pixel in sample order, like
 //! [`Film`](crate::Film), so the buffers do not depend on the thread count.
 //! Depth is averaged over the samples that hit something; a pixel none of
 //! whose samples hit has infinite depth.
+//! The specular radiance is averaged over all samples, its guides over the
+//! samples that took the delta lobe (zero where none did); a film none of
+//! whose samples took one has no split ([`AovImages::specular`] is `None`).
 
 use lucent_geom::{DVec3, Vec3};
 
