@@ -10,11 +10,19 @@
 //! and copy are included and take a few milliseconds). One JSON line per
 //! size: the first run (it may pay for the device's first use) and the
 //! median, minimum and maximum of the rest.
+//!
+//! Each run denoises the film as `lucent render --denoise` does
+//! (`Denoiser::denoise_guided`): where the scene has a specular split
+//! (`lucent_render::aov`: a surface both diffuse and a mirror or glass in
+//! view) that is two filter runs, the image less the split and the split;
+//! then each run also denoises the same film without the split (one filter
+//! run), timed alone, and the line gives that too (`unsplit_*`) to show
+//! what the split costs.
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use lucent_denoise::{Denoiser, Quality};
-use lucent_render::aov::AovFilm;
+use lucent_render::aov::{AovFilm, AovImages};
 use lucent_render::metrics::median;
 use lucent_render::{Film, Integrator, RenderSettings, extract, render_samples_aov, with_threads};
 use std::path::PathBuf;
@@ -90,26 +98,35 @@ pub fn run(args: DenoiseBenchArgs) -> Result<()> {
         with_threads(args.threads, || {
             render_samples_aov(&rs, &settings, &mut film, &mut aovs, 0..args.spp, &|_| {})
         })?;
-        let color = film.to_linear_rgb();
         let guides = aovs.images();
-        let mut times = Vec::new();
-        for _ in 0..=args.runs {
+        let split = guides.specular.is_some();
+        let unsplit = AovImages {
+            specular: None,
+            ..guides.clone()
+        };
+        let timed = |g: &AovImages| -> Result<f64> {
             let start = Instant::now();
-            let out = denoiser.denoise(
-                w as usize,
-                h as usize,
-                &color,
-                Some(&guides.albedo),
-                Some(&guides.normal),
-                args.quality,
-            )?;
-            times.push(start.elapsed().as_secs_f64());
-            if out.pixels.len() != color.len() {
-                bail!("the denoiser returned {} floats for {}", out.pixels.len(), color.len());
+            let (out, _) = denoiser.denoise_guided(&film, Some(g), args.quality, None)?;
+            let t = start.elapsed().as_secs_f64();
+            if (out.width(), out.height()) != (w, h) {
+                bail!(
+                    "the denoiser returned a {}x{} image for {w}x{h}",
+                    out.width(),
+                    out.height()
+                );
+            }
+            Ok(t)
+        };
+        let (mut times, mut unsplit_times) = (Vec::new(), Vec::new());
+        for _ in 0..=args.runs {
+            times.push(timed(&guides)?);
+            if split {
+                unsplit_times.push(timed(&unsplit)?);
             }
         }
         let first = times[0];
         let mut rest = times[1..].to_vec();
+        let mut unsplit_rest = unsplit_times.get(1..).unwrap_or(&[]).to_vec();
         let line = serde_json::json!({
             "bench": "denoise",
             "scene": args.scene.display().to_string(),
@@ -119,6 +136,7 @@ pub fn run(args: DenoiseBenchArgs) -> Result<()> {
             "filter": "RT",
             "hdr": true,
             "guides": "albedo+normal",
+            "specular_split": split,
             "quality": quality_name(args.quality),
             "threads": args.threads,
             "runs": rest.len(),
@@ -126,6 +144,8 @@ pub fn run(args: DenoiseBenchArgs) -> Result<()> {
             "median_s": median(&mut rest),
             "min_s": rest.iter().copied().fold(f64::INFINITY, f64::min),
             "max_s": rest.iter().copied().fold(0.0, f64::max),
+            "unsplit_median_s": split.then(|| median(&mut unsplit_rest)),
+            "unsplit_min_s": split.then(|| unsplit_rest.iter().copied().fold(f64::INFINITY, f64::min)),
             "library": denoiser.library().display().to_string(),
         });
         println!("{line}");

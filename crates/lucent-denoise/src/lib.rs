@@ -21,6 +21,13 @@
 //! Device errors become [`DenoiseError::Oidn`] with OIDN's message.
 //! [`Denoiser::denoise_render`] keeps the emitters the camera sees out of
 //! the filter and puts them back antialiased ([`emission`]).
+//! When the guides carry a specular split ([`lucent_render::aov`]: the
+//! light a mixed surface such as a varnished floor shows by its mirror or
+//! glass lobe), [`Denoiser::denoise_guided`] and the calls built on it run
+//! the filter twice: on the image less that light, with the guides of the
+//! surface seen, and on that light, with the guides of what it mirrors;
+//! then add the two. Without a split (no such surface in view) it runs
+//! once, as for any image.
 //! All `unsafe` code is in `ffi.rs`.
 //!
 //! ```no_run
@@ -39,7 +46,7 @@ pub mod to_error;
 
 use lucent_geom::Vec3;
 use lucent_render::Film;
-use lucent_render::aov::{AovFilm, AovImages};
+use lucent_render::aov::{AovFilm, AovImages, SpecularImages};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::AtomicBool;
@@ -333,7 +340,10 @@ impl Denoiser {
             albedo: guides.map(|g| g.albedo.as_slice()),
             normal: guides.map(|g| g.normal.as_slice()),
         };
-        let d = self.run(&input, quality, cancel)?;
+        let d = match guides.and_then(|g| g.specular.as_ref()) {
+            Some(specular) => self.run_split(&input, specular, quality, cancel)?,
+            None => self.run(&input, quality, cancel)?,
+        };
         let pixels = d.pixels.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
         let out = Film::from_pixels(w, h, pixels)
             .ok_or_else(|| DenoiseError::BadInput("the denoised image has the wrong size".into()))?;
@@ -359,6 +369,58 @@ impl Denoiser {
         let (denoised, d) = self.denoise_film(&rest, aovs, quality)?;
         let out = emission.restore(&denoised).ok_or_else(mismatch)?;
         Ok((out, d))
+    }
+}
+
+impl Denoiser {
+    /// [`Denoiser::run`] of an image whose specular split is known (see
+    /// [`lucent_render::aov`]): the light that left the guide surface by
+    /// its delta lobe is denoised apart from the rest, guided by what the
+    /// mirror or glass shows there, and the two denoised images are added.
+    fn run_split(
+        &self,
+        input: &Input<'_>,
+        specular: &SpecularImages,
+        quality: Quality,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<Denoised, DenoiseError> {
+        let n = input.color.len();
+        for (name, b) in [
+            ("specular radiance", &specular.radiance),
+            ("specular albedo", &specular.albedo),
+            ("specular normal", &specular.normal),
+        ] {
+            if b.len() != n {
+                return Err(DenoiseError::BadInput(format!(
+                    "the {name} buffer holds {} floats, the colour buffer {n}",
+                    b.len()
+                )));
+            }
+        }
+        // The beauty image less its specular part; rounding can leave a
+        // hair below zero.
+        let rest: Vec<f32> = input
+            .color
+            .iter()
+            .zip(&specular.radiance)
+            .map(|(&c, &s)| (c - s).max(0.0))
+            .collect();
+        let a = self.run(&Input { color: &rest, ..*input }, quality, cancel)?;
+        let b = self.run(
+            &Input {
+                color: &specular.radiance,
+                albedo: Some(&specular.albedo),
+                normal: Some(&specular.normal),
+                ..*input
+            },
+            quality,
+            cancel,
+        )?;
+        Ok(Denoised {
+            pixels: a.pixels.iter().zip(&b.pixels).map(|(x, y)| x + y).collect(),
+            replaced: a.replaced + b.replaced,
+            elapsed: a.elapsed + b.elapsed,
+        })
     }
 }
 

@@ -209,28 +209,9 @@ impl SplitRender {
         merged(&self.halves[0], &self.halves[1])
     }
 
-    /// The guide buffers of all samples: the halves' means, weighted by
-    /// their sample counts.
+    /// The guide buffers of all samples (the halves' sums together).
     pub fn aov_images(&self) -> AovImages {
-        let (a, b) = (self.aovs[0].images(), self.aovs[1].images());
-        let (na, nb) = (self.aovs[0].n_samples() as f32, self.aovs[1].n_samples() as f32);
-        let k = 1.0 / (na + nb).max(1.0);
-        let mix = |x: &[f32], y: &[f32]| x.iter().zip(y).map(|(x, y)| (x * na + y * nb) * k).collect();
-        let depth = a
-            .depth
-            .iter()
-            .zip(&b.depth)
-            .map(|(&x, &y)| match (x.is_finite(), y.is_finite()) {
-                (true, true) => (x * na + y * nb) * k,
-                (true, false) => x,
-                _ => y,
-            })
-            .collect();
-        AovImages {
-            albedo: mix(&a.albedo, &b.albedo),
-            normal: mix(&a.normal, &b.normal),
-            depth,
-        }
+        self.aovs[0].merged(&self.aovs[1]).images()
     }
 
     /// The first-hit emission of all samples, as

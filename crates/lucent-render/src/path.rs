@@ -154,7 +154,7 @@ impl<'a> PathTracer<'a> {
         let mut rec = AovRecorder::new();
         let radiance = self.trace_path::<EMISSIVE, AOV, MASKED>(camera_ray, rng, stats, aov, &mut rec);
         if AOV {
-            rec.end(aov);
+            rec.end(aov, radiance);
         }
         radiance
     }
@@ -298,7 +298,7 @@ impl<'a> PathTracer<'a> {
             };
             throughput *= Vec3A::from(bs.weight);
             if AOV && rec.pending() {
-                rec.specular_bounce(bs.weight);
+                rec.bounce(bs.weight, bs.pdf, bs.delta, radiance.into());
             }
             if throughput.max_element() <= 0.0 {
                 break;

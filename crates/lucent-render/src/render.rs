@@ -392,20 +392,25 @@ fn trace_rows_aov(
         .zip(aovs.albedo.par_chunks_mut(width.max(1)))
         .zip(aovs.normal.par_chunks_mut(width.max(1)))
         .zip(aovs.depth.par_chunks_mut(width.max(1)))
+        .zip(aovs.specular.par_chunks_mut(width.max(1)))
         .enumerate()
-        .map(|(row, (((pixels, albedo), normal), depth))| {
+        .map(|(row, ((((pixels, albedo), normal), depth), specular))| {
             let mut stats = RayStats::default();
             if cancel.load(Ordering::Relaxed) {
                 return stats;
             }
-            let aov_pixels = albedo.iter_mut().zip(normal.iter_mut()).zip(depth.iter_mut());
-            for (col, (px, ((a, n), d))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
+            let aov_pixels = albedo
+                .iter_mut()
+                .zip(normal.iter_mut())
+                .zip(depth.iter_mut())
+                .zip(specular.iter_mut());
+            for (col, (px, (((a, n), d), sp))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
                 let (col, row) = (col as u32, row as u32);
                 let key = sampler.pixel_key(col, row);
                 for s in samples.clone() {
                     let mut aov = AovSample::default();
                     px.add_sample(sampler.sample_aov_keyed(key, col, row, s, &mut stats, &mut aov));
-                    aov.add_to(a, n, d);
+                    aov.add_to(a, n, d, sp);
                 }
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);

@@ -132,6 +132,32 @@ pub fn floor_and_ceiling(floor_material: Material, ceiling: Material, height: f3
     scene
 }
 
+/// A varnished floor (diffuse 0.4 beside a smooth mirror lobe of 0.4) at
+/// y = 0 under a diffuse ceiling (albedo 0.5) at y = 2 that faces down,
+/// lit by a unit point light between them, in a [`dark`] environment: a
+/// surface that is both diffuse and a mirror, like the seed scene's floor.
+pub fn varnished_floor_under_ceiling() -> Scene {
+    let varnished = Material {
+        kd: Vec3::splat(0.4),
+        kr: Vec3::splat(0.4),
+        ..Material::default()
+    };
+    let grey = Material {
+        kd: Vec3::splat(0.5),
+        ..Material::default()
+    };
+    let mut scene = floor_and_ceiling(varnished, grey, 2.0);
+    scene.environment = dark();
+    scene.add_light(
+        "bulb",
+        Light::Point {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            intensity: Vec3::ONE,
+        },
+    );
+    scene
+}
+
 /// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
 /// (albedo 0.5) at y = 2 that faces down, lit by a unit point light between
 /// them, in a [`dark`] environment: paths that must pass a mirror before

@@ -36,7 +36,9 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE.exr")]
     pub(crate) exr: Option<PathBuf>,
     /// Feature buffers to add to the --exr file as layers (channel groups
-    /// albedo.R/G/B, normal.X/Y/Z, depth.Z), comma-separated: albedo,normal,depth.
+    /// albedo.R/G/B, normal.X/Y/Z, depth.Z; specular: the light mixed surfaces
+    /// mirror, specular.R/G/B, with its guides specular_albedo.R/G/B and
+    /// specular_normal.X/Y/Z), comma-separated: albedo,normal,depth,specular.
     #[arg(long, value_name = "LIST", value_delimiter = ',', requires = "exr")]
     aov: Vec<AovArg>,
     /// Exposure of the PNG in stops (EV): radiance is scaled by 2^EV first.
@@ -68,6 +70,7 @@ enum AovArg {
     Albedo,
     Normal,
     Depth,
+    Specular,
 }
 
 /// Samples per pixel of the guide buffers when the image itself was not
@@ -249,26 +252,58 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     if let Some(exr) = &args.exr {
         let images = images.or_else(|| aovs.as_ref().map(AovFilm::images));
+        // The specular layers where the render has no split.
+        let zeros = if args.aov.contains(&AovArg::Specular) {
+            vec![0.0f32; w as usize * h as usize * 3]
+        } else {
+            Vec::new()
+        };
         let mut layers = Vec::new();
         if let Some(img) = &images {
             for aov in &args.aov {
-                layers.push(match aov {
-                    AovArg::Albedo => lucent_assets::ExrLayer {
+                let rgb = &["R", "G", "B"];
+                match aov {
+                    AovArg::Albedo => layers.push(lucent_assets::ExrLayer {
                         name: "albedo",
-                        channels: &["R", "G", "B"],
+                        channels: rgb,
                         data: &img.albedo,
-                    },
-                    AovArg::Normal => lucent_assets::ExrLayer {
+                    }),
+                    AovArg::Normal => layers.push(lucent_assets::ExrLayer {
                         name: "normal",
                         channels: &["X", "Y", "Z"],
                         data: &img.normal,
-                    },
-                    AovArg::Depth => lucent_assets::ExrLayer {
+                    }),
+                    AovArg::Depth => layers.push(lucent_assets::ExrLayer {
                         name: "depth",
                         channels: &["Z"],
                         data: &img.depth,
-                    },
-                });
+                    }),
+                    AovArg::Specular => {
+                        // Zero where no sample took a delta lobe (so in the
+                        // whole image when none did).
+                        let (radiance, albedo, normal) = match &img.specular {
+                            Some(sp) => (&sp.radiance, &sp.albedo, &sp.normal),
+                            None => (&zeros, &zeros, &zeros),
+                        };
+                        layers.extend([
+                            lucent_assets::ExrLayer {
+                                name: "specular",
+                                channels: rgb,
+                                data: radiance,
+                            },
+                            lucent_assets::ExrLayer {
+                                name: "specular_albedo",
+                                channels: rgb,
+                                data: albedo,
+                            },
+                            lucent_assets::ExrLayer {
+                                name: "specular_normal",
+                                channels: &["X", "Y", "Z"],
+                                data: normal,
+                            },
+                        ]);
+                    }
+                }
             }
         }
         layers.dedup_by_key(|l| l.name);

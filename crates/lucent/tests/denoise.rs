@@ -18,12 +18,21 @@ fn aovs_go_into_the_exr_as_layers_and_need_an_exr_and_the_path_tracer() {
     let dir = scratch("denoise", "aov");
     let exr = dir.join("a.exr");
     run_ok(
-        &format!("render {CORNELL} --size 16x16 --spp 2 --aov albedo,normal,depth --exr"),
+        &format!("render {CORNELL} --size 16x16 --spp 2 --aov albedo,normal,depth,specular --exr"),
         &[s(&exr)],
     );
     let bytes = std::fs::read(&exr).unwrap();
     for channel in [
-        "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z",
+        "albedo.R",
+        "albedo.G",
+        "albedo.B",
+        "normal.X",
+        "normal.Y",
+        "normal.Z",
+        "depth.Z",
+        "specular.R",
+        "specular_albedo.G",
+        "specular_normal.Z",
     ] {
         assert!(has(&bytes, format!("{channel}\0").as_bytes()), "no {channel} channel");
     }
