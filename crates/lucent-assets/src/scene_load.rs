@@ -344,7 +344,13 @@ impl Loader<'_> {
             phi_deg: 90.0,
             fov_y_deg: 60.0,
         });
-        let bounds = world_bounds(&self.scene.world);
+        // The scene is framed only where the file leaves the centre or the
+        // radius out: the bounds cost a pass over every mesh.
+        let bounds = if desc.center.is_some() && desc.radius.is_some() {
+            Aabb::EMPTY
+        } else {
+            world_bounds(&self.scene.world)
+        };
         let (center, fit_radius) = if bounds.is_empty() {
             (lucent_geom::Vec3::ZERO, 3.0)
         } else {
@@ -366,12 +372,16 @@ impl Loader<'_> {
     }
 }
 
-/// World-space bounds of every instance, parents included.
+/// World-space bounds of every instance, parents included. Each mesh's
+/// own bounds are worked out once, however many instances share it.
 pub(crate) fn world_bounds(world: &World) -> Aabb {
+    let mut mesh_bounds: HashMap<Entity, Aabb> = HashMap::new();
     let mut q = world.query::<(Entity, &MeshRef)>();
     q.iter().fold(Aabb::EMPTY, |b, (e, m)| {
-        let mesh_bounds = world.get::<&Mesh>(m.0).map_or(Aabb::EMPTY, |mesh| mesh.0.bounds());
-        b.union(mesh_bounds.transformed(&world_from_local(world, e)))
+        let local = *mesh_bounds
+            .entry(m.0)
+            .or_insert_with(|| world.get::<&Mesh>(m.0).map_or(Aabb::EMPTY, |mesh| mesh.0.bounds()));
+        b.union(local.transformed(&world_from_local(world, e)))
     })
 }
 

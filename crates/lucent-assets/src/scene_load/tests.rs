@@ -136,6 +136,23 @@ fn framing_bounds_follow_parent_transforms() {
     assert_eq!(b.center(), Vec3::new(10.0, 0.0, 0.0));
 }
 
+/// Instances sharing one mesh each add it where they stand (the mesh's own
+/// bounds are worked out once and reused).
+#[test]
+fn instances_of_one_mesh_bound_the_scene_where_each_stands() {
+    use lucent_geom::{Affine3A, Vec3};
+    let mut scene = Scene::default();
+    let cube = scene.add_mesh("cube", shapes::cuboid());
+    let mat = scene.add_material("m", Material::default());
+    for x in [-4.0, 0.0, 6.0] {
+        scene.add_instance("c", cube, mat, Affine3A::from_translation(Vec3::new(x, 0.0, 0.0)));
+    }
+    let one = shapes::cuboid().bounds();
+    let b = world_bounds(&scene.world);
+    assert_eq!(b.min, one.min + Vec3::new(-4.0, 0.0, 0.0));
+    assert_eq!(b.max, one.max + Vec3::new(6.0, 0.0, 0.0));
+}
+
 #[test]
 fn parts_sharing_an_mtl_material_share_its_entity() {
     let obj: &'static [u8] =
