@@ -1,13 +1,15 @@
 //! The specular split of the denoiser's input (`lucent_render::aov`,
 //! `lucent_denoise::Denoiser::denoise_film`): on a surface that is both
-//! diffuse and a mirror, the light it mirrors is denoised apart, and the
-//! denoised image is the same bytes on one thread or several.
+//! diffuse and a mirror, the light it mirrors is denoised apart, the point
+//! light's direct light at the first surface is put back unfiltered, and
+//! the denoised image is the same bytes on one thread or several.
 //!
 //! Needs Intel Open Image Denoise (`cargo xtask oidn`); without it the test
 //! says so and checks only the render, unless `LUCENT_REQUIRE_OIDN=1` (as
 //! `.ci/run` sets), where it fails.
 
 use lucent_denoise::{Denoiser, Quality};
+use lucent_geom::Vec3;
 use lucent_render::aov::AovFilm;
 use lucent_render::{Film, Integrator, RenderScene, RenderSettings, extract, render_samples_aov, with_threads};
 use lucent_scene::fixtures::varnished_floor_under_ceiling;
@@ -63,6 +65,36 @@ fn the_split_denoise_is_deterministic_and_differs_from_the_unsplit_one() {
         "the split denoise depends on the thread count"
     );
     assert_eq!(once, denoise(&film, &aovs), "the split denoise differs from run to run");
+
+    // The bulb's light at the first surface, gathered without noise, is
+    // added back unfiltered to the denoised image less its sampled part.
+    let Some(delta) = guides.delta_lights.clone() else {
+        panic!("the bulb lit no guide surface");
+    };
+    let rest: Vec<Vec3> = film
+        .to_linear_rgb()
+        .iter()
+        .zip(&delta.sampled)
+        .map(|(&c, &s)| (c - s).max(0.0))
+        .collect::<Vec<f32>>()
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0], c[1], c[2]))
+        .collect();
+    let rest = Film::from_pixels(W, H, rest).unwrap_or_else(|| panic!("sizes"));
+    let without_delta = lucent_render::aov::AovImages {
+        delta_lights: None,
+        ..guides.clone()
+    };
+    let (rest, _) = denoiser
+        .denoise_guided(&rest, Some(&without_delta), Quality::High, None)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let put_back: Vec<f32> = rest
+        .to_linear_rgb()
+        .iter()
+        .zip(&delta.all)
+        .map(|(r, a)| r + a)
+        .collect();
+    assert_eq!(once, put_back);
 
     // Without the split, the same film and guides denoise to another image:
     // the split is what ran.

@@ -28,6 +28,13 @@
 //! surface seen, and on that light, with the guides of what it mirrors;
 //! then add the two. Without a split (no such surface in view) it runs
 //! once, as for any image.
+//! When the guides also carry the direct light of point and directional
+//! lights at the first surface ([`lucent_render::aov`]: every such light
+//! asked with a shadow ray, so without noise but the pixel's
+//! antialiasing), [`Denoiser::denoise_guided`] filters the image less the
+//! part its samples drew from those lights at random, and adds that
+//! noise-free light back unfiltered: a sunlit glossy highlight or a
+//! texture's fine pattern is then not smoothed away.
 //! All `unsafe` code is in `ffi.rs`.
 //!
 //! ```no_run
@@ -332,7 +339,23 @@ impl Denoiser {
         cancel: Option<&AtomicBool>,
     ) -> Result<(Film, Denoised), DenoiseError> {
         let (w, h) = (film.width(), film.height());
-        let color = film.to_linear_rgb();
+        let mut color = film.to_linear_rgb();
+        let delta = guides.and_then(|g| g.delta_lights.as_ref());
+        if let Some(delta) = delta {
+            if delta.all.len() != color.len() || delta.sampled.len() != color.len() {
+                return Err(DenoiseError::BadInput(format!(
+                    "the delta lights' buffers hold {} and {} floats, the colour buffer {}",
+                    delta.all.len(),
+                    delta.sampled.len(),
+                    color.len()
+                )));
+            }
+            // The image less what its light samples drew from delta
+            // lights; rounding can leave a hair below zero.
+            for (c, s) in color.iter_mut().zip(&delta.sampled) {
+                *c = (*c - s).max(0.0);
+            }
+        }
         let input = Input {
             width: w as usize,
             height: h as usize,
@@ -340,10 +363,22 @@ impl Denoiser {
             albedo: guides.map(|g| g.albedo.as_slice()),
             normal: guides.map(|g| g.normal.as_slice()),
         };
-        let d = match guides.and_then(|g| g.specular.as_ref()) {
+        let mut d = match guides.and_then(|g| g.specular.as_ref()) {
             Some(specular) => self.run_split(&input, specular, quality, cancel)?,
             None => self.run(&input, quality, cancel)?,
         };
+        if let Some(delta) = delta {
+            // The delta lights' light, noise-free, added back unfiltered
+            // (a non-finite or negative value counted and left out, as
+            // `run` does with its inputs).
+            for (c, &a) in d.pixels.iter_mut().zip(&delta.all) {
+                if a.is_finite() && a >= 0.0 {
+                    *c += a;
+                } else {
+                    d.replaced += 1;
+                }
+            }
+        }
         let pixels = d.pixels.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
         let out = Film::from_pixels(w, h, pixels)
             .ok_or_else(|| DenoiseError::BadInput("the denoised image has the wrong size".into()))?;

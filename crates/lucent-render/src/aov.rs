@@ -32,6 +32,21 @@
 //! a flat floor. A path that leaves the guide surface by another lobe
 //! records no specular part.
 //!
+//! **The delta lights at the guide surface.** A point or directional light
+//! lights a point without Monte Carlo noise once it is asked: one shadow
+//! ray. The path tracer asks one light per surface, chosen at random, so
+//! at 8 samples per pixel a sunlit surface is lit in some samples and not
+//! in others, and a denoiser smooths away what that light shows sharply
+//! (a glossy highlight, a texture's fine pattern). So the recorder keeps,
+//! at the guide surface, the part of the sample's radiance that its light
+//! sample drew from a delta light ([`AovSample::delta_lights_sampled`]),
+//! and the AOV variant of the path tracer also gathers every delta light
+//! there, each with its own shadow ray ([`AovSample::delta_lights`]; no
+//! random numbers are drawn, so the path and its radiance are unchanged).
+//! Given the surface point the two have the same expectation; the second
+//! has no noise but the pixel's antialiasing, so a denoiser can denoise the
+//! image less the first and add the second back untouched.
+//!
 //! [`AovFilm`] sums the samples of each pixel in sample order, like
 //! [`Film`](crate::Film), so the buffers do not depend on the thread count.
 //! Depth is averaged over the samples that hit something; a pixel none of
@@ -39,6 +54,9 @@
 //! The specular radiance is averaged over all samples, its guides over the
 //! samples that took the delta lobe (zero where none did); a film none of
 //! whose samples took one has no split ([`AovImages::specular`] is `None`).
+//! The delta lights' parts are averaged over all samples; a film in which
+//! no delta light lit a guide surface has none ([`AovImages::delta_lights`]
+//! is `None`).
 
 use lucent_geom::{DVec3, Vec3};
 
@@ -58,6 +76,12 @@ pub struct AovSample {
     /// Where the path left the guide surface by its delta lobe: the guides
     /// recorded where that light came from (see the module docs).
     pub specular_guide: Option<SpecularGuide>,
+    /// Every point and directional light's direct light at the guide
+    /// surface, each with its own shadow ray (see the module docs).
+    pub delta_lights: Vec3,
+    /// The part of the sample's radiance that the guide surface's own light
+    /// sample drew from a point or directional light.
+    pub delta_lights_sampled: Vec3,
 }
 
 /// The guides of the light a mixed surface shows by its delta lobe:
@@ -82,6 +106,10 @@ pub(crate) struct SpecularSums {
     count: u32,
 }
 
+/// Per-pixel sums of the delta lights' direct light at the guide surface:
+/// every light's, then the sampled part.
+pub(crate) type DeltaLightSums = (DVec3, DVec3);
+
 impl AovSample {
     /// Adds this sample to one pixel's sums.
     #[inline]
@@ -91,6 +119,7 @@ impl AovSample {
         normal: &mut DVec3,
         depth: &mut (f64, u32),
         specular: &mut SpecularSums,
+        delta: &mut DeltaLightSums,
     ) {
         *albedo += self.albedo.as_dvec3();
         *normal += self.normal.as_dvec3();
@@ -99,6 +128,8 @@ impl AovSample {
             depth.1 += 1;
         }
         specular.radiance += self.specular.as_dvec3();
+        delta.0 += self.delta_lights.as_dvec3();
+        delta.1 += self.delta_lights_sampled.as_dvec3();
         if let Some(g) = self.specular_guide {
             specular.albedo += g.albedo.as_dvec3();
             specular.normal += g.normal.as_dvec3();
@@ -118,6 +149,8 @@ pub struct AovFilm {
     pub(crate) depth: Vec<(f64, u32)>,
     /// Sums of the specular split.
     pub(crate) specular: Vec<SpecularSums>,
+    /// Sums of the delta lights' direct light.
+    pub(crate) delta: Vec<DeltaLightSums>,
     pub(crate) n_samples: u32,
 }
 
@@ -133,6 +166,22 @@ pub struct AovImages {
     /// The specular split, when some sample left a mixed surface by its
     /// delta lobe.
     pub specular: Option<SpecularImages>,
+    /// The delta lights' direct light at the guide surface, when one lit
+    /// some sample's.
+    pub delta_lights: Option<DeltaLightImages>,
+}
+
+/// The direct light of point and directional lights at the guide surface
+/// (see the module docs), RGB interleaved like [`AovImages`], means over
+/// all samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeltaLightImages {
+    /// Every such light, each asked with a shadow ray: no noise but the
+    /// pixel's antialiasing.
+    pub all: Vec<f32>,
+    /// What the samples' own light samples drew from such lights: part of
+    /// the beauty image.
+    pub sampled: Vec<f32>,
 }
 
 /// The specular split of a pixel's radiance (see the module docs), RGB
@@ -161,6 +210,7 @@ impl AovFilm {
             normal: vec![DVec3::ZERO; n],
             depth: vec![(0.0, 0); n],
             specular: vec![SpecularSums::default(); n],
+            delta: vec![(DVec3::ZERO, DVec3::ZERO); n],
             n_samples: 0,
         }
     }
@@ -186,7 +236,14 @@ impl AovFilm {
         self.normal.fill(DVec3::ZERO);
         self.depth.fill((0.0, 0));
         self.specular.fill(SpecularSums::default());
+        self.delta.fill((DVec3::ZERO, DVec3::ZERO));
         self.n_samples = 0;
+    }
+
+    /// Forgets the delta lights' sums, for guides rendered apart from the
+    /// image they guide: their sampled part is not that image's.
+    pub fn clear_delta_lights(&mut self) {
+        self.delta.fill((DVec3::ZERO, DVec3::ZERO));
     }
 
     /// The samples of `self` and `other` together (pixel by pixel, `self`'s
@@ -209,6 +266,10 @@ impl AovFilm {
             a.normal += b.normal;
             a.count += b.count;
         }
+        for (a, b) in out.delta.iter_mut().zip(&other.delta) {
+            a.0 += b.0;
+            a.1 += b.1;
+        }
         out.n_samples += other.n_samples;
         out
     }
@@ -216,13 +277,14 @@ impl AovFilm {
     /// Adds one sample to pixel `i` (nothing when out of range).
     #[cfg(test)]
     fn add(&mut self, i: usize, s: &AovSample) {
-        if let (Some(a), Some(n), Some(d), Some(sp)) = (
+        if let (Some(a), Some(n), Some(d), Some(sp), Some(dl)) = (
             self.albedo.get_mut(i),
             self.normal.get_mut(i),
             self.depth.get_mut(i),
             self.specular.get_mut(i),
+            self.delta.get_mut(i),
         ) {
-            s.add_to(a, n, d, sp);
+            s.add_to(a, n, d, sp, dl);
         }
     }
 
@@ -249,7 +311,26 @@ impl AovFilm {
                 })
                 .collect(),
             specular: self.specular_images(k),
+            delta_lights: self.delta_light_images(k),
         }
+    }
+
+    /// The delta lights' means (`k`: one over the sample count), or `None`
+    /// when no delta light lit a guide surface.
+    fn delta_light_images(&self, k: f64) -> Option<DeltaLightImages> {
+        if self.delta.iter().all(|(a, s)| *a == DVec3::ZERO && *s == DVec3::ZERO) {
+            return None;
+        }
+        let flat = |f: &dyn Fn(&DeltaLightSums) -> DVec3| -> Vec<f32> {
+            self.delta
+                .iter()
+                .flat_map(|d| (f(d) * k).as_vec3().to_array())
+                .collect()
+        };
+        Some(DeltaLightImages {
+            all: flat(&|d| d.0),
+            sampled: flat(&|d| d.1),
+        })
     }
 
     /// The specular split's means (`k`: one over the sample count), or
@@ -310,6 +391,12 @@ impl AovRecorder {
             phase: Phase::Primary,
             split_from: None,
         }
+    }
+
+    /// Whether the path stands at its guide surface (recorded, not yet left).
+    #[inline]
+    pub(crate) fn at_guide(&self) -> bool {
+        self.phase == Phase::Leaving
     }
 
     /// Whether something is still to be recorded.
@@ -630,5 +717,35 @@ mod tests {
         };
         let (_, aovs) = render_with(2, &plain);
         assert_eq!(aovs.images().specular, None);
+    }
+
+    #[test]
+    fn the_delta_lights_are_gathered_at_the_guide_surface_without_changing_the_path() {
+        // `render_with` checks that the beauty image is the plain render's.
+        let rs = varnished_floor();
+        let (film, aovs) = render_with(1, &rs);
+        assert_eq!(aovs, render_with(2, &rs).1);
+        let Some(delta) = aovs.images().delta_lights else {
+            panic!("the bulb lit no guide surface");
+        };
+        let beauty = film.to_linear_rgb();
+        let mut lit = 0;
+        for (i, ((&c, &all), &sampled)) in beauty.iter().zip(&delta.all).zip(&delta.sampled).enumerate() {
+            let tol = 1e-5 * c.max(1.0);
+            // The sampled part is a part of the beauty image; and the bulb
+            // is the only light, so every light sample asked it, with
+            // probability 1, just as the gathering did.
+            assert!((0.0..=c + tol).contains(&sampled), "value {i}: {sampled} of {c}");
+            assert!((all - sampled).abs() <= tol, "value {i}: {all} against {sampled}");
+            lit += usize::from(all > 0.0);
+        }
+        assert!(lit > beauty.len() / 2, "{lit} of {}", beauty.len());
+
+        // Without point or directional lights there is nothing to gather.
+        let glowing = match crate::extract(&lucent_scene::fixtures::glowing_box(0.5, 1.0)) {
+            Ok(rs) => rs,
+            Err(e) => panic!("{e}"),
+        };
+        assert_eq!(render_with(2, &glowing).1.images().delta_lights, None);
     }
 }

@@ -501,6 +501,26 @@ impl LightSet {
                 delta: false,
             });
         };
+        Self::delta_sample(light, from, p)
+    }
+
+    /// How many point and directional lights the set holds.
+    #[inline]
+    pub fn delta_light_count(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Point or directional light `index` (of [`LightSet::delta_light_count`])
+    /// seen from `from`, as a sample of density 1: that light alone, not
+    /// chosen among the others.
+    #[inline]
+    pub fn delta_light(&self, index: usize, from: Vec3A) -> Option<LightSample> {
+        Self::delta_sample(self.lights.get(index)?, from, 1.0)
+    }
+
+    /// A point or directional light's sample, chosen with probability `p`.
+    #[inline]
+    fn delta_sample(light: &Light, from: Vec3A, p: f32) -> Option<LightSample> {
         let s = light.sample(from.into())?;
         let wi = Vec3A::from(s.to_light);
         Some(LightSample {

@@ -264,6 +264,29 @@ impl<'a> PathTracer<'a> {
             // left into, kept for the next segment if it leaves there too.
             let mut lifted: Option<(bool, Vec3A)> = None;
 
+            // At the guide surface, the AOV variant also gathers every
+            // point and directional light (see `aov`'s module docs): a
+            // shadow ray each, no random numbers, so the path is unchanged.
+            let at_guide = AOV && rec.at_guide() && !bsdf.is_delta();
+            if at_guide {
+                for i in 0..lights.delta_light_count() {
+                    if let Some(ls) = lights.delta_light(i, p)
+                        && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
+                    {
+                        let f = bsdf.eval_pdf(wo_unit, wi).0;
+                        if f != Vec3::ZERO {
+                            stats.shadow += 1;
+                            let origin = hit.offset_a(p, if ls.wi.dot(ng) >= 0.0 { ng } else { -ng });
+                            if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
+                                && !self.occluded::<MASKED>(&shadow_ray, t_max)
+                            {
+                                let c = throughput * Vec3A::from(f) * Vec3A::from(ls.value);
+                                aov.delta_lights += Vec3::from(self.clamped(c, depth >= 1));
+                            }
+                        }
+                    }
+                }
+            }
             // Next-event estimation.
             if !bsdf.is_delta()
                 && let Some(ls) = lights.sample(p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
@@ -283,10 +306,14 @@ impl<'a> PathTracer<'a> {
                         } else {
                             power_heuristic(ls.pdf, bsdf_pdf)
                         };
-                        radiance += self.clamped(
+                        let c = self.clamped(
                             throughput * Vec3A::from(f) * Vec3A::from(ls.value) * (w / ls.pdf),
                             depth >= 1,
                         );
+                        radiance += c;
+                        if at_guide && ls.delta {
+                            aov.delta_lights_sampled += Vec3::from(c);
+                        }
                     }
                 }
             }

@@ -393,8 +393,9 @@ fn trace_rows_aov(
         .zip(aovs.normal.par_chunks_mut(width.max(1)))
         .zip(aovs.depth.par_chunks_mut(width.max(1)))
         .zip(aovs.specular.par_chunks_mut(width.max(1)))
+        .zip(aovs.delta.par_chunks_mut(width.max(1)))
         .enumerate()
-        .map(|(row, ((((pixels, albedo), normal), depth), specular))| {
+        .map(|(row, (((((pixels, albedo), normal), depth), specular), delta))| {
             let mut stats = RayStats::default();
             if cancel.load(Ordering::Relaxed) {
                 return stats;
@@ -403,14 +404,15 @@ fn trace_rows_aov(
                 .iter_mut()
                 .zip(normal.iter_mut())
                 .zip(depth.iter_mut())
-                .zip(specular.iter_mut());
-            for (col, (px, (((a, n), d), sp))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
+                .zip(specular.iter_mut())
+                .zip(delta.iter_mut());
+            for (col, (px, ((((a, n), d), sp), dl))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
                 let (col, row) = (col as u32, row as u32);
                 let key = sampler.pixel_key(col, row);
                 for s in samples.clone() {
                     let mut aov = AovSample::default();
                     px.add_sample(sampler.sample_aov_keyed(key, col, row, s, &mut stats, &mut aov));
-                    aov.add_to(a, n, d, sp);
+                    aov.add_to(a, n, d, sp, dl);
                 }
             }
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
