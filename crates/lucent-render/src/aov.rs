@@ -240,9 +240,13 @@ impl AovFilm {
         self.n_samples = 0;
     }
 
-    /// Forgets the delta lights' sums, for guides rendered apart from the
-    /// image they guide: their sampled part is not that image's.
-    pub fn clear_delta_lights(&mut self) {
+    /// Forgets the sums of the specular split and of the delta lights,
+    /// keeping the guides, for guides rendered apart from the image they
+    /// guide: the parts of the radiance they hold are not that image's, and
+    /// subtracting them from it would leave its own noise in the filtered
+    /// rest. The image is then denoised whole.
+    pub fn keep_guides_only(&mut self) {
+        self.specular.fill(SpecularSums::default());
         self.delta.fill((DVec3::ZERO, DVec3::ZERO));
     }
 
@@ -747,5 +751,20 @@ mod tests {
             Err(e) => panic!("{e}"),
         };
         assert_eq!(render_with(2, &glowing).1.images().delta_lights, None);
+    }
+
+    #[test]
+    fn guides_kept_alone_drop_both_parts_of_the_radiance() {
+        let rs = varnished_floor();
+        let (_, mut aovs) = render_with(2, &rs);
+        let before = aovs.images();
+        assert!(before.specular.is_some() && before.delta_lights.is_some());
+        aovs.keep_guides_only();
+        let after = aovs.images();
+        assert_eq!((&after.specular, &after.delta_lights), (&None, &None));
+        assert_eq!(
+            (&after.albedo, &after.normal, &after.depth),
+            (&before.albedo, &before.normal, &before.depth)
+        );
     }
 }

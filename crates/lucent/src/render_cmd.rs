@@ -458,9 +458,9 @@ fn guide_buffers(rs: &RenderScene, settings: &RenderSettings, w: u32, h: u32) ->
     let mut scratch = Film::new(w, h);
     let mut aov_film = AovFilm::new(w, h);
     render_samples_aov(rs, &full, &mut scratch, &mut aov_film, 0..GUIDE_SPP, &|_| {});
-    // Their delta lights' sampled part is not the image's own: without it
-    // the image is denoised whole.
-    aov_film.clear_delta_lights();
+    // Their specular part and delta lights' sampled part are not the
+    // image's own: without them the image is denoised whole.
+    aov_film.keep_guides_only();
     aov_film
 }
 
