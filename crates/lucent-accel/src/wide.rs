@@ -103,6 +103,9 @@ pub(crate) trait Query {
 /// A test of a node's eight child boxes: entry distances and the mask of
 /// the children entered within `[0, t_bound]`.
 pub(crate) trait BoxTest: Copy {
+    /// Whether this is the vector kernel's test (`crate::kernel`'s AVX2
+    /// one) rather than the portable one.
+    const SIMD: bool;
     /// The per-ray constants in the form this test reads them.
     type Ray: Copy;
     /// `slab` prepared for this test (once per query).
@@ -130,6 +133,7 @@ pub(crate) trait BoxTest: Copy {
 pub(crate) struct Portable;
 
 impl BoxTest for Portable {
+    const SIMD: bool = false;
     type Ray = SlabRay;
     #[inline(always)]
     fn prepare_boxes(self, slab: &SlabRay) -> SlabRay {
