@@ -50,11 +50,29 @@ impl Instance {
     /// renormalised, so `t` means the same in both spaces.
     #[inline]
     pub fn object_ray(&self, ray: &Ray) -> Ray {
-        Ray::new(
-            self.object_from_world.transform_point3(ray.origin),
-            self.object_from_world.transform_vector3(ray.dir),
-        )
+        object_ray(&self.object_from_world, ray)
     }
+}
+
+/// `ray` moved by `object_from_world` (direction not renormalised).
+#[inline(always)]
+fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
+    Ray::new(
+        object_from_world.transform_point3(ray.origin),
+        object_from_world.transform_vector3(ray.dir),
+    )
+}
+
+/// An instance as the closest-hit and any-hit walks read it, stored in the
+/// instance tree's leaf order (leaf entries name runs of these): an
+/// instance entered costs one lookup, not one in the tree's order and one
+/// among the instances.
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    object_from_world: Affine3A,
+    mesh: u32,
+    /// Its index among the instances.
+    instance: u32,
 }
 
 /// A hit in a two-level scene.
@@ -78,6 +96,8 @@ pub struct SceneBvh {
     meshes: Vec<Arc<MeshBvh>>,
     instances: Vec<Instance>,
     tlas: Bvh,
+    /// The instances in `tlas.prim_indices` order.
+    placed: Vec<Placed>,
     /// The instance tree collapsed to 8 wide (leaves name runs of
     /// `tlas.prim_indices`), which queries walk with the mesh trees' walk
     /// and box test.
@@ -104,10 +124,31 @@ impl SceneBvh {
         };
         let tlas = Bvh::build(&boxes, &top_params);
         let wide = WideBvh::from_binary(&tlas, |first, count| leaf_entry(first as usize, count as usize));
+        let placed = tlas
+            .prim_indices()
+            .iter()
+            .map(|&idx| {
+                // The tree's indices are those of `boxes`, so every one
+                // names an instance; a missing one would name no mesh.
+                instances.get(idx as usize).map_or(
+                    Placed {
+                        object_from_world: Affine3A::IDENTITY,
+                        mesh: u32::MAX,
+                        instance: idx,
+                    },
+                    |inst| Placed {
+                        object_from_world: inst.object_from_world,
+                        mesh: inst.mesh,
+                        instance: idx,
+                    },
+                )
+            })
+            .collect();
         Self {
             meshes,
             instances,
             tlas,
+            placed,
             wide,
         }
     }
@@ -132,6 +173,7 @@ impl SceneBvh {
         self.tlas.bytes()
             + self.wide.bytes()
             + self.instances.len() * size_of::<Instance>()
+            + self.placed.len() * size_of::<Placed>()
             + self.meshes.iter().map(|m| m.bytes()).sum::<usize>()
     }
 
@@ -230,12 +272,17 @@ impl<B: BoxTest, L: LeafTest> Leaves for &mut ClosestInstances<'_, B, L> {
     #[inline(always)]
     fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool {
         let scene = self.scene;
-        for &idx in scene.tlas.prim_indices().get(first..first + count).unwrap_or_default() {
-            if let Some((inst, mesh)) = scene.instance_mesh(idx)
-                && let Some(h) = mesh.intersect_in(self.boxes, self.leaves, &inst.object_ray(self.ray), *t_bound)
+        for p in scene.placed.get(first..first + count).unwrap_or_default() {
+            if let Some(mesh) = scene.meshes.get(p.mesh as usize)
+                && let Some(h) = mesh.intersect_in(
+                    self.boxes,
+                    self.leaves,
+                    &object_ray(&p.object_from_world, self.ray),
+                    *t_bound,
+                )
             {
                 *t_bound = h.t;
-                self.best = Some(scene_hit(h, idx));
+                self.best = Some(scene_hit(h, p.instance));
             }
         }
         false
@@ -279,9 +326,14 @@ impl<B: BoxTest, L: LeafTest> Leaves for AnyInstances<'_, B, L> {
     #[inline(always)]
     fn visit(&mut self, first: usize, count: usize, _: &mut f32) -> bool {
         let scene = self.scene;
-        for &idx in scene.tlas.prim_indices().get(first..first + count).unwrap_or_default() {
-            if let Some((inst, mesh)) = scene.instance_mesh(idx)
-                && mesh.occluded_in(self.boxes, self.leaves, &inst.object_ray(self.ray), self.t_max)
+        for p in scene.placed.get(first..first + count).unwrap_or_default() {
+            if let Some(mesh) = scene.meshes.get(p.mesh as usize)
+                && mesh.occluded_in(
+                    self.boxes,
+                    self.leaves,
+                    &object_ray(&p.object_from_world, self.ray),
+                    self.t_max,
+                )
             {
                 return true;
             }
