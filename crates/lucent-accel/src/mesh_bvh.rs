@@ -1,6 +1,6 @@
 //! A BVH over one triangle mesh (the bottom level).
 
-use crate::wide::{BoxTest, Leaves, Portable, Query, Tally, WideBvh};
+use crate::wide::{BoxTest, Leaves, Query, Tally, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{
     PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, lane_triangle, plane_distance,
@@ -395,7 +395,7 @@ impl MeshBvh {
                 avx2.run_boxes(q)
             };
         }
-        q.run(Portable, PortableLeaf)
+        crate::wide::run_portable(q)
     }
 
     /// Whether [`MeshBvh::run`] would run a query with box test `B` and

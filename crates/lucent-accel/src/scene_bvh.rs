@@ -1,8 +1,8 @@
 //! Two-level BVH: a tree over instances, each an affine transform of a
 //! shared mesh BVH.
 
-use crate::mesh_bvh::{LeafTest, PortableLeaf};
-use crate::wide::{BoxTest, Leaves, Portable, Query, WideBvh, leaf_entry};
+use crate::mesh_bvh::LeafTest;
+use crate::wide::{BoxTest, Leaves, Query, WideBvh, leaf_entry};
 use crate::{Aabb, BuildParams, Bvh, MeshBvh, MeshHit};
 use lucent_geom::{Affine3A, Ray};
 use std::sync::Arc;
@@ -192,7 +192,7 @@ impl SceneBvh {
         if let Some(avx2) = self.wide.simd {
             return avx2.run(q);
         }
-        q.run(Portable, PortableLeaf)
+        crate::wide::run_portable(q)
     }
 
     /// Closest hit with `0 < t < t_max`.

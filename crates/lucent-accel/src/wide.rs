@@ -472,7 +472,7 @@ impl WideBvh {
         if let Some(avx2) = self.simd {
             return avx2.run(walk);
         }
-        walk.run(Portable, crate::mesh_bvh::PortableLeaf)
+        run_portable(walk)
     }
 
     /// Turns the vector kernel off (`false`, the portable walk only) or back
@@ -644,6 +644,15 @@ where
         self.wide
             .walk_sized::<ORDERED, B, F, T>(boxes, self.ray, self.t_max, self.leaf, self.tally)
     }
+}
+
+/// Runs `q` with the portable box and pack tests, out of line: a query
+/// that picks its kernels at run time then carries no frame for the
+/// portable walk on its AVX2 path (the walk's stacks made every such query
+/// probe and reserve kilobytes of stack before calling the kernel).
+#[inline(never)]
+pub(crate) fn run_portable<Q: Query>(q: Q) -> Q::Output {
+    q.run(Portable, crate::mesh_bvh::PortableLeaf)
 }
 
 /// [`BoxTest::push_entries`], one lane at a time.
