@@ -112,6 +112,7 @@ pub(crate) struct Slab8 {
 const ROW: usize = size_of::<[f32; W]>();
 
 impl BoxTest for Avx2 {
+    const SIMD: bool = true;
     type Ray = Slab8;
 
     #[inline(always)]
@@ -298,6 +299,7 @@ struct Hits8 {
 }
 
 impl LeafTest for Avx2 {
+    const SIMD: bool = true;
     type Ray = Ray8;
 
     #[inline(always)]

@@ -1,6 +1,6 @@
 //! A BVH over one triangle mesh (the bottom level).
 
-use crate::wide::{BoxTest, Leaves, Portable, Query, Tally, WideBvh};
+use crate::wide::{BoxTest, Leaves, Query, Tally, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{
     PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, lane_triangle, plane_distance,
@@ -73,6 +73,9 @@ const EMPTY_PACK: Pack = Pack {
 /// tests ([`PortableLeaf`]) and, on x86-64, the AVX2 ones of
 /// `crate::kernel` answer alike, bit for bit.
 pub(crate) trait LeafTest: Copy {
+    /// Whether these are the vector kernel's tests (`crate::kernel`'s AVX2
+    /// watertight ones) rather than the portable ones.
+    const SIMD: bool;
     /// The ray prepared for this test.
     type Ray: Copy;
     /// `ray` prepared for `test`.
@@ -97,6 +100,7 @@ pub(crate) trait LeafTest: Copy {
 pub(crate) struct PortableLeaf;
 
 impl LeafTest for PortableLeaf {
+    const SIMD: bool = false;
     type Ray = PreparedRay;
 
     #[inline(always)]
@@ -391,7 +395,51 @@ impl MeshBvh {
                 avx2.run_boxes(q)
             };
         }
-        q.run(Portable, PortableLeaf)
+        crate::wide::run_portable(q)
+    }
+
+    /// Whether [`MeshBvh::run`] would run a query with box test `B` and
+    /// pack tests `L`: then a query already running with them (the
+    /// instance walk of [`crate::SceneBvh`]) may walk this tree in place,
+    /// inlined, and finds what a call of the public query would find, bit
+    /// for bit (the same code).
+    #[inline(always)]
+    fn runs_with<B: BoxTest, L: LeafTest>(&self) -> bool {
+        let (boxes, leaves) = if self.wide.simd() {
+            (true, self.test == TriangleTest::Watertight)
+        } else {
+            (false, false)
+        };
+        B::SIMD == boxes && L::SIMD == leaves
+    }
+
+    /// [`MeshBvh::intersect`] from inside a query running with `boxes` and
+    /// `leaves`: inlined there when this tree runs with them too, else the
+    /// call.
+    #[inline(always)]
+    pub(crate) fn intersect_in<B: BoxTest, L: LeafTest>(
+        &self,
+        boxes: B,
+        leaves: L,
+        ray: &Ray,
+        t_max: f32,
+    ) -> Option<MeshHit> {
+        if self.runs_with::<B, L>() {
+            self.intersect_with(boxes, leaves, ray, t_max, &mut ())
+        } else {
+            self.intersect(ray, t_max)
+        }
+    }
+
+    /// [`MeshBvh::occluded`] from inside a query running with `boxes` and
+    /// `leaves` (as [`MeshBvh::intersect_in`]).
+    #[inline(always)]
+    pub(crate) fn occluded_in<B: BoxTest, L: LeafTest>(&self, boxes: B, leaves: L, ray: &Ray, t_max: f32) -> bool {
+        if self.runs_with::<B, L>() {
+            self.occluded_with(boxes, leaves, ray, t_max, &mut ())
+        } else {
+            self.occluded(ray, t_max)
+        }
     }
 
     /// The ray-triangle test in use.
@@ -600,6 +648,38 @@ pub(crate) mod tests {
     use super::*;
     use crate::BuildQuality;
     use lucent_geom::{Pcg32, Vec3, intersect_triangle, shapes};
+
+    /// The instance walk inlines a mesh's walk only with the kernels that
+    /// the mesh's own queries run ([`MeshBvh::run`]'s choice): the AVX2
+    /// box and pack tests for a watertight mesh with the vector kernel, the
+    /// AVX2 box test and portable pack tests for Moller-Trumbore, the
+    /// portable ones with the vector kernel off.
+    #[test]
+    fn a_walk_runs_inside_another_only_with_its_own_kernels() {
+        use crate::wide::Portable;
+        let bvh = MeshBvh::build(&shapes::icosphere(1), &BuildParams::default());
+        let mt = bvh.clone().with_triangle_test(TriangleTest::MollerTrumbore);
+        let portable = [
+            bvh.clone().with_vector_kernel(false),
+            mt.clone().with_vector_kernel(false),
+        ];
+        for m in &portable {
+            assert!(m.runs_with::<Portable, PortableLeaf>());
+        }
+        #[cfg(target_arch = "x86_64")]
+        if bvh.vector_kernel() {
+            type A = crate::kernel::Avx2;
+            assert!(bvh.runs_with::<A, A>());
+            assert!(!bvh.runs_with::<A, PortableLeaf>() && !bvh.runs_with::<Portable, PortableLeaf>());
+            assert!(mt.runs_with::<A, PortableLeaf>());
+            assert!(!mt.runs_with::<A, A>() && !mt.runs_with::<Portable, PortableLeaf>());
+            for m in &portable {
+                assert!(!m.runs_with::<A, A>() && !m.runs_with::<A, PortableLeaf>());
+            }
+            return;
+        }
+        assert!(bvh.runs_with::<Portable, PortableLeaf>() && mt.runs_with::<Portable, PortableLeaf>());
+    }
 
     /// Ordinary, needle, tiny and huge triangles, exact duplicates sharing
     /// edges, and exactly degenerate ones (a point, a line).

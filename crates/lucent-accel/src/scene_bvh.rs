@@ -1,7 +1,8 @@
 //! Two-level BVH: a tree over instances, each an affine transform of a
 //! shared mesh BVH.
 
-use crate::wide::{WideBvh, leaf_entry};
+use crate::mesh_bvh::LeafTest;
+use crate::wide::{BoxTest, Leaves, Query, WideBvh, leaf_entry};
 use crate::{Aabb, BuildParams, Bvh, MeshBvh, MeshHit};
 use lucent_geom::{Affine3A, Ray};
 use std::sync::Arc;
@@ -49,11 +50,29 @@ impl Instance {
     /// renormalised, so `t` means the same in both spaces.
     #[inline]
     pub fn object_ray(&self, ray: &Ray) -> Ray {
-        Ray::new(
-            self.object_from_world.transform_point3(ray.origin),
-            self.object_from_world.transform_vector3(ray.dir),
-        )
+        object_ray(&self.object_from_world, ray)
     }
+}
+
+/// `ray` moved by `object_from_world` (direction not renormalised).
+#[inline(always)]
+fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
+    Ray::new(
+        object_from_world.transform_point3(ray.origin),
+        object_from_world.transform_vector3(ray.dir),
+    )
+}
+
+/// An instance as the closest-hit and any-hit walks read it, stored in the
+/// instance tree's leaf order (leaf entries name runs of these): an
+/// instance entered costs one lookup, not one in the tree's order and one
+/// among the instances.
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    object_from_world: Affine3A,
+    mesh: u32,
+    /// Its index among the instances.
+    instance: u32,
 }
 
 /// A hit in a two-level scene.
@@ -77,6 +96,8 @@ pub struct SceneBvh {
     meshes: Vec<Arc<MeshBvh>>,
     instances: Vec<Instance>,
     tlas: Bvh,
+    /// The instances in `tlas.prim_indices` order.
+    placed: Vec<Placed>,
     /// The instance tree collapsed to 8 wide (leaves name runs of
     /// `tlas.prim_indices`), which queries walk with the mesh trees' walk
     /// and box test.
@@ -103,10 +124,31 @@ impl SceneBvh {
         };
         let tlas = Bvh::build(&boxes, &top_params);
         let wide = WideBvh::from_binary(&tlas, |first, count| leaf_entry(first as usize, count as usize));
+        let placed = tlas
+            .prim_indices()
+            .iter()
+            .map(|&idx| {
+                // The tree's indices are those of `boxes`, so every one
+                // names an instance; a missing one would name no mesh.
+                instances.get(idx as usize).map_or(
+                    Placed {
+                        object_from_world: Affine3A::IDENTITY,
+                        mesh: u32::MAX,
+                        instance: idx,
+                    },
+                    |inst| Placed {
+                        object_from_world: inst.object_from_world,
+                        mesh: inst.mesh,
+                        instance: idx,
+                    },
+                )
+            })
+            .collect();
         Self {
             meshes,
             instances,
             tlas,
+            placed,
             wide,
         }
     }
@@ -131,47 +173,44 @@ impl SceneBvh {
         self.tlas.bytes()
             + self.wide.bytes()
             + self.instances.len() * size_of::<Instance>()
+            + self.placed.len() * size_of::<Placed>()
             + self.meshes.iter().map(|m| m.bytes()).sum::<usize>()
     }
 
+    #[inline(always)]
     fn instance_mesh(&self, idx: u32) -> Option<(&Instance, &MeshBvh)> {
         let inst = self.instances.get(idx as usize)?;
         let mesh = self.meshes.get(inst.mesh as usize)?;
         Some((inst, mesh))
     }
 
+    /// Runs `q` with the kernels the instance tree's walk uses (the ones
+    /// `WideBvh::walk` picks).
+    #[inline(always)]
+    fn run<Q: Query>(&self, q: Q) -> Q::Output {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = self.wide.simd {
+            return avx2.run(q);
+        }
+        crate::wide::run_portable(q)
+    }
+
     /// Closest hit with `0 < t < t_max`.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<SceneHit> {
-        let mut best = None;
-        let leaf = |first: usize, count: usize, t_bound: &mut f32| {
-            for idx in self.tlas.prim_indices().get(first..first + count).unwrap_or_default() {
-                if let Some((inst, mesh)) = self.instance_mesh(*idx)
-                    && let Some(h) = mesh.intersect(&inst.object_ray(ray), *t_bound)
-                {
-                    *t_bound = h.t;
-                    best = Some(scene_hit(h, *idx));
-                }
-            }
-            false
-        };
-        self.wide.walk::<true, _, _>(ray, t_max, leaf, &mut ());
-        best
+        self.run(Closest {
+            scene: self,
+            ray,
+            t_max,
+        })
     }
 
     /// Whether anything is hit with `0 < t < t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        let leaf = |first: usize, count: usize, _: &mut f32| {
-            self.tlas
-                .prim_indices()
-                .get(first..first + count)
-                .unwrap_or_default()
-                .iter()
-                .any(|&idx| {
-                    self.instance_mesh(idx)
-                        .is_some_and(|(inst, mesh)| mesh.occluded(&inst.object_ray(ray), t_max))
-                })
-        };
-        self.wide.walk::<false, _, _>(ray, t_max, leaf, &mut ())
+        self.run(Any {
+            scene: self,
+            ray,
+            t_max,
+        })
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
@@ -188,6 +227,118 @@ impl SceneBvh {
             false
         };
         self.wide.walk::<false, _, _>(ray, t_max, leaf, &mut ())
+    }
+}
+
+/// The closest-hit query over instances, run through [`SceneBvh::run`]:
+/// the instance walk, and in each instance entered the mesh walk with the
+/// same kernels, inlined into it where the mesh runs with them (which
+/// spares each instance entered the calls into the mesh query and into its
+/// kernel).
+struct Closest<'a> {
+    scene: &'a SceneBvh,
+    ray: &'a Ray,
+    t_max: f32,
+}
+
+impl Query for Closest<'_> {
+    type Output = Option<SceneHit>;
+    #[inline(always)]
+    fn run<B: BoxTest, L: LeafTest>(self, boxes: B, leaves: L) -> Option<SceneHit> {
+        let mut visit = ClosestInstances {
+            scene: self.scene,
+            ray: self.ray,
+            boxes,
+            leaves,
+            best: None,
+        };
+        self.scene
+            .wide
+            .walk_sized::<true, B, _, ()>(boxes, self.ray, self.t_max, &mut visit, &mut ());
+        visit.best
+    }
+}
+
+/// The leaves of the closest-hit instance walk: the nearest hit so far.
+struct ClosestInstances<'a, B, L> {
+    scene: &'a SceneBvh,
+    ray: &'a Ray,
+    boxes: B,
+    leaves: L,
+    best: Option<SceneHit>,
+}
+
+impl<B: BoxTest, L: LeafTest> Leaves for &mut ClosestInstances<'_, B, L> {
+    #[inline(always)]
+    fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool {
+        let scene = self.scene;
+        for p in scene.placed.get(first..first + count).unwrap_or_default() {
+            if let Some(mesh) = scene.meshes.get(p.mesh as usize)
+                && let Some(h) = mesh.intersect_in(
+                    self.boxes,
+                    self.leaves,
+                    &object_ray(&p.object_from_world, self.ray),
+                    *t_bound,
+                )
+            {
+                *t_bound = h.t;
+                self.best = Some(scene_hit(h, p.instance));
+            }
+        }
+        false
+    }
+}
+
+/// The any-hit query over instances (as [`Closest`]).
+struct Any<'a> {
+    scene: &'a SceneBvh,
+    ray: &'a Ray,
+    t_max: f32,
+}
+
+impl Query for Any<'_> {
+    type Output = bool;
+    #[inline(always)]
+    fn run<B: BoxTest, L: LeafTest>(self, boxes: B, leaves: L) -> bool {
+        let visit = AnyInstances {
+            scene: self.scene,
+            ray: self.ray,
+            boxes,
+            leaves,
+            t_max: self.t_max,
+        };
+        self.scene
+            .wide
+            .walk_sized::<false, B, _, ()>(boxes, self.ray, self.t_max, visit, &mut ())
+    }
+}
+
+/// The leaves of the any-hit instance walk.
+struct AnyInstances<'a, B, L> {
+    scene: &'a SceneBvh,
+    ray: &'a Ray,
+    boxes: B,
+    leaves: L,
+    t_max: f32,
+}
+
+impl<B: BoxTest, L: LeafTest> Leaves for AnyInstances<'_, B, L> {
+    #[inline(always)]
+    fn visit(&mut self, first: usize, count: usize, _: &mut f32) -> bool {
+        let scene = self.scene;
+        for p in scene.placed.get(first..first + count).unwrap_or_default() {
+            if let Some(mesh) = scene.meshes.get(p.mesh as usize)
+                && mesh.occluded_in(
+                    self.boxes,
+                    self.leaves,
+                    &object_ray(&p.object_from_world, self.ray),
+                    self.t_max,
+                )
+            {
+                return true;
+            }
+        }
+        false
     }
 }
 
@@ -286,18 +437,49 @@ mod tests {
         assert!(!scene.occluded(&ray, f32::INFINITY));
     }
 
-    /// The 8-wide instance walk finds what testing every instance finds:
-    /// the nearest hit (same t bit for bit, same instance and triangle
-    /// unless two are hit at the same t), occlusion, and every hit, over 60
-    /// overlapping instances of two meshes, scaled and rotated.
+    /// The 8-wide instance walk finds what testing every instance finds,
+    /// over instances of two meshes that run the walk's own kernels (so
+    /// their walks are inlined into it).
     #[test]
     fn wide_instance_walk_matches_testing_every_instance() {
-        use lucent_geom::Pcg32;
         let params = BuildParams::default();
-        let meshes = vec![
+        matches_testing_every_instance(vec![
             Arc::new(MeshBvh::build(&shapes::icosphere(2), &params)),
             Arc::new(MeshBvh::build(&shapes::cuboid(), &params)),
-        ];
+        ]);
+    }
+
+    /// The same with meshes that run other kernels than the instance walk
+    /// (the portable walk, the Moller-Trumbore test): those instances are
+    /// walked by calls rather than inlined, and the answers stay the
+    /// public queries' ones.
+    #[test]
+    fn instances_of_meshes_with_other_kernels_match_testing_every_instance() {
+        let params = BuildParams::default();
+        let sphere = MeshBvh::build(&shapes::icosphere(2), &params);
+        let cube = MeshBvh::build(&shapes::cuboid(), &params);
+        matches_testing_every_instance(vec![
+            Arc::new(sphere.clone().with_vector_kernel(false)),
+            Arc::new(
+                cube.clone()
+                    .with_triangle_test(lucent_geom::TriangleTest::MollerTrumbore),
+            ),
+            Arc::new(sphere),
+            Arc::new(
+                cube.with_triangle_test(lucent_geom::TriangleTest::MollerTrumbore)
+                    .with_vector_kernel(false),
+            ),
+        ]);
+    }
+
+    /// 60 instances (scaled, rotated, overlapping) of `meshes` in turn:
+    /// the scene's queries find the nearest hit (same t bit for bit, same
+    /// instance and triangle unless two are hit at the same t), occlusion
+    /// and every hit that the public queries of each instance find.
+    fn matches_testing_every_instance(meshes: Vec<Arc<MeshBvh>>) {
+        use lucent_geom::Pcg32;
+        let params = BuildParams::default();
+        let n_meshes = meshes.len() as u32;
         let mut rng = Pcg32::new(3, 9);
         let mut r = move || rng.next_f32();
         let instances: Vec<Instance> = (0..60)
@@ -307,7 +489,7 @@ mod tests {
                     Quat::from_rotation_y(6.0 * r()) * Quat::from_rotation_x(r()),
                     Vec3::new(8.0 * r() - 4.0, 2.0 * r() - 1.0, 8.0 * r() - 4.0),
                 );
-                Instance::new(xf, i % 2)
+                Instance::new(xf, i % n_meshes)
             })
             .collect();
         let scene = SceneBvh::build(meshes.clone(), instances.clone(), &params);

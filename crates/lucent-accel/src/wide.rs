@@ -103,6 +103,9 @@ pub(crate) trait Query {
 /// A test of a node's eight child boxes: entry distances and the mask of
 /// the children entered within `[0, t_bound]`.
 pub(crate) trait BoxTest: Copy {
+    /// Whether this is the vector kernel's test (`crate::kernel`'s AVX2
+    /// one) rather than the portable one.
+    const SIMD: bool;
     /// The per-ray constants in the form this test reads them.
     type Ray: Copy;
     /// `slab` prepared for this test (once per query).
@@ -130,6 +133,7 @@ pub(crate) trait BoxTest: Copy {
 pub(crate) struct Portable;
 
 impl BoxTest for Portable {
+    const SIMD: bool = false;
     type Ray = SlabRay;
     #[inline(always)]
     fn prepare_boxes(self, slab: &SlabRay) -> SlabRay {
@@ -468,7 +472,7 @@ impl WideBvh {
         if let Some(avx2) = self.simd {
             return avx2.run(walk);
         }
-        walk.run(Portable, crate::mesh_bvh::PortableLeaf)
+        run_portable(walk)
     }
 
     /// Turns the vector kernel off (`false`, the portable walk only) or back
@@ -640,6 +644,15 @@ where
         self.wide
             .walk_sized::<ORDERED, B, F, T>(boxes, self.ray, self.t_max, self.leaf, self.tally)
     }
+}
+
+/// Runs `q` with the portable box and pack tests, out of line: a query
+/// that picks its kernels at run time then carries no frame for the
+/// portable walk on its AVX2 path (the walk's stacks made every such query
+/// probe and reserve kilobytes of stack before calling the kernel).
+#[inline(never)]
+pub(crate) fn run_portable<Q: Query>(q: Q) -> Q::Output {
+    q.run(Portable, crate::mesh_bvh::PortableLeaf)
 }
 
 /// [`BoxTest::push_entries`], one lane at a time.
