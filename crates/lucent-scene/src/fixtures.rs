@@ -142,20 +142,7 @@ pub fn varnished_floor_under_ceiling() -> Scene {
         kr: Vec3::splat(0.4),
         ..Material::default()
     };
-    let grey = Material {
-        kd: Vec3::splat(0.5),
-        ..Material::default()
-    };
-    let mut scene = floor_and_ceiling(varnished, grey, 2.0);
-    scene.environment = dark();
-    scene.add_light(
-        "bulb",
-        Light::Point {
-            position: Vec3::new(0.0, 1.0, 0.0),
-            intensity: Vec3::ONE,
-        },
-    );
-    scene
+    floor_under_lit_ceiling(varnished)
 }
 
 /// A mirror floor (reflectance 0.8) at y = 0 under a diffuse ceiling
@@ -168,11 +155,17 @@ pub fn mirror_under_ceiling() -> Scene {
         kr: Vec3::splat(0.8),
         ..Material::default()
     };
+    floor_under_lit_ceiling(mirror)
+}
+
+/// `floor` at y = 0 under a diffuse ceiling (albedo 0.5) at y = 2 that
+/// faces down, a unit point light between them, in a [`dark`] environment.
+fn floor_under_lit_ceiling(floor: Material) -> Scene {
     let grey = Material {
         kd: Vec3::splat(0.5),
         ..Material::default()
     };
-    let mut scene = floor_and_ceiling(mirror, grey, 2.0);
+    let mut scene = floor_and_ceiling(floor, grey, 2.0);
     scene.environment = dark();
     scene.add_light(
         "bulb",
