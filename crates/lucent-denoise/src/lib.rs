@@ -342,14 +342,8 @@ impl Denoiser {
         let mut color = film.to_linear_rgb();
         let delta = guides.and_then(|g| g.delta_lights.as_ref());
         if let Some(delta) = delta {
-            if delta.all.len() != color.len() || delta.sampled.len() != color.len() {
-                return Err(DenoiseError::BadInput(format!(
-                    "the delta lights' buffers hold {} and {} floats, the colour buffer {}",
-                    delta.all.len(),
-                    delta.sampled.len(),
-                    color.len()
-                )));
-            }
+            same_len("delta lights", &delta.all, color.len())?;
+            same_len("delta lights' sampled", &delta.sampled, color.len())?;
             // The image less what its light samples drew from delta
             // lights; rounding can leave a hair below zero.
             for (c, s) in color.iter_mut().zip(&delta.sampled) {
@@ -420,18 +414,9 @@ impl Denoiser {
         cancel: Option<&AtomicBool>,
     ) -> Result<Denoised, DenoiseError> {
         let n = input.color.len();
-        for (name, b) in [
-            ("specular radiance", &specular.radiance),
-            ("specular albedo", &specular.albedo),
-            ("specular normal", &specular.normal),
-        ] {
-            if b.len() != n {
-                return Err(DenoiseError::BadInput(format!(
-                    "the {name} buffer holds {} floats, the colour buffer {n}",
-                    b.len()
-                )));
-            }
-        }
+        same_len("specular radiance", &specular.radiance, n)?;
+        same_len("specular albedo", &specular.albedo, n)?;
+        same_len("specular normal", &specular.normal, n)?;
         // The beauty image less its specular part; rounding can leave a
         // hair below zero.
         let rest: Vec<f32> = input
@@ -456,6 +441,19 @@ impl Denoiser {
             replaced: a.replaced + b.replaced,
             elapsed: a.elapsed + b.elapsed,
         })
+    }
+}
+
+/// A part or guide buffer `name` beside a colour buffer of `n` floats:
+/// an error unless it holds as many.
+fn same_len(name: &str, b: &[f32], n: usize) -> Result<(), DenoiseError> {
+    if b.len() == n {
+        Ok(())
+    } else {
+        Err(DenoiseError::BadInput(format!(
+            "the {name} buffer holds {} floats, the colour buffer {n}",
+            b.len()
+        )))
     }
 }
 

@@ -107,6 +107,44 @@ fn mismatched_buffers_are_errors() {
     assert!(d.denoise(2, 2, &px, Some(&px), Some(&px), Quality::Fast).is_ok());
 }
 
+/// Split parts or delta-light buffers of the wrong size are refused by
+/// name before the filter runs.
+#[test]
+fn mismatched_split_buffers_are_errors() {
+    let Some(d) = denoiser() else { return };
+    let film = Film::from_pixels(2, 2, vec![Vec3::splat(0.5); 4]).unwrap_or_else(|| panic!("sizes"));
+    let px = vec![0.5f32; 4 * 3];
+    let guides = lucent_render::aov::AovImages {
+        albedo: px.clone(),
+        normal: px.clone(),
+        depth: vec![1.0; 4],
+        specular: None,
+        delta_lights: None,
+    };
+    let message = |g: &lucent_render::aov::AovImages| match d.denoise_guided(&film, Some(g), Quality::Fast, None) {
+        Err(DenoiseError::BadInput(m)) => m,
+        other => panic!("{:?}", other.map(|_| ())),
+    };
+    let specular = lucent_render::aov::AovImages {
+        specular: Some(lucent_render::aov::SpecularImages {
+            radiance: px.clone(),
+            albedo: px[..9].to_vec(),
+            normal: px.clone(),
+        }),
+        ..guides.clone()
+    };
+    assert!(message(&specular).contains("specular albedo buffer holds 9 floats"));
+    let delta = lucent_render::aov::AovImages {
+        delta_lights: Some(lucent_render::aov::DeltaLightImages {
+            all: px.clone(),
+            sampled: px[..3].to_vec(),
+        }),
+        ..guides.clone()
+    };
+    assert!(message(&delta).contains("delta lights' sampled buffer holds 3 floats"));
+    assert!(d.denoise_guided(&film, Some(&guides), Quality::Fast, None).is_ok());
+}
+
 /// A set cancel flag stops the filter with `Cancelled` (the viewer's stale
 /// stills); a clear one changes nothing.
 #[test]
