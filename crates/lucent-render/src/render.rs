@@ -327,7 +327,7 @@ impl<'a> PixelSampler<'a> {
     }
 
     /// Radiance of sample `s` of pixel (`col`, `row`).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
         self.sample_keyed(self.pixel_key(col, row), col, row, s, stats)
     }
