@@ -1,6 +1,8 @@
 //! The AVX2 kernel: the one module of this crate with `unsafe` code.
 //!
-//! [`Avx2::detect`] checks at run time that the processor has AVX2 and FMA;
+//! [`Avx2::detect`] checks at run time that the processor has AVX2 and FMA
+//! (and BMI1, BMI2, LZCNT and POPCNT, which every AVX2 processor has, for
+//! the walk's mask arithmetic);
 //! only then does an [`Avx2`] value exist, and only through it is code
 //! compiled for those features entered ([`Avx2::run`]: a query runs inside
 //! it, its walk and leaf tests inlined there). The binary therefore runs on
@@ -52,7 +54,7 @@ use std::arch::x86_64::{
     _mm256_setr_epi32, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_storeu_si256, _mm256_sub_pd, _mm256_sub_ps,
 };
 
-/// Proof that the processor has AVX2 and FMA (made only by
+/// Proof that the processor has AVX2, FMA, BMI1, BMI2, LZCNT and POPCNT (made only by
 /// [`Avx2::detect`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Avx2 {
@@ -62,7 +64,8 @@ pub(crate) struct Avx2 {
 impl Avx2 {
     /// The kernel, where this processor runs it.
     pub(crate) fn detect() -> Option<Self> {
-        (std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma"))
+        use std::arch::is_x86_feature_detected as has;
+        (has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt") && has!("popcnt"))
             .then_some(Self { _private: () })
     }
 
@@ -71,24 +74,24 @@ impl Avx2 {
     /// function with those features, so the intrinsics inline into it.
     #[inline]
     pub(crate) fn run<Q: Query>(self, q: Q) -> Q::Output {
-        // SAFETY: an `Avx2` exists only where `detect` found AVX2 and FMA.
+        // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
         unsafe { run_avx2(self, q) }
     }
 
     /// [`Avx2::run`] with the portable pack tests (for Moller-Trumbore).
     #[inline]
     pub(crate) fn run_boxes<Q: Query>(self, q: Q) -> Q::Output {
-        // SAFETY: an `Avx2` exists only where `detect` found AVX2 and FMA.
+        // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
         unsafe { run_boxes_avx2(self, q) }
     }
 }
 
-#[target_feature(enable = "avx2,fma")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn run_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
     q.run(avx2, avx2)
 }
 
-#[target_feature(enable = "avx2,fma")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn run_boxes_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
     q.run(avx2, PortableLeaf)
 }
@@ -562,7 +565,7 @@ unsafe fn lt(a: __m256, b: __m256) -> __m256 {
 /// The edge functions recomputed in f64 on the lanes of `on_edge` (kept out
 /// of line: a ray rarely meets an edge or vertex exactly).
 #[inline(never)]
-#[target_feature(enable = "avx2,fma")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn edge_fallback(on_edge: u32, xy: [__m256; 6], uvw: [__m256; 3]) -> (__m256, __m256, __m256) {
     // SAFETY: this function is compiled for AVX2 and only called from code
     // that an `Avx2` proof let run; loads and stores move exactly eight

@@ -22,7 +22,7 @@
 //! The portable code is plain safe Rust over `[f32; 8]` lanes, except one
 //! module, `kernel` (x86-64 only): the eight-box test and the
 //! eight-triangle watertight test in AVX2 intrinsics, chosen at run time
-//! where the processor has AVX2 and FMA (a whole query is then compiled for
+//! where the processor has AVX2, FMA and BMI (a whole query is then compiled for
 //! those features), switched by [`MeshBvh::with_vector_kernel`] and checked
 //! bit for bit against the portable code. It holds this crate's only
 //! `unsafe` code.

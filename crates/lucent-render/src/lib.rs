@@ -34,7 +34,7 @@
 //! assert_eq!(out.film.to_srgb8().len(), 32 * 24 * 3);
 //! # Ok::<(), lucent_render::ExtractError>(())
 //! ```
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 
 mod alpha;
 pub mod aov;
@@ -45,6 +45,7 @@ mod extract;
 mod film;
 pub mod flat;
 pub mod interaction;
+mod isa;
 pub mod lights;
 pub mod metrics;
 pub mod partial;

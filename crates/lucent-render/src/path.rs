@@ -112,6 +112,9 @@ impl<'a> PathTracer<'a> {
     }
 
     /// Radiance along a camera ray, one path, random numbers from `rng`.
+    /// Always inlined, so the render loop's AVX2 copy (`crate::isa`) has
+    /// its own copy of the path.
+    #[inline(always)]
     pub fn trace_primary(&self, camera_ray: Ray, rng: &mut Pcg32, stats: &mut RayStats) -> Vec3 {
         let mut unused = AovSample::default();
         match (self.scene.features.emissive, self.scene.features.alpha_tested) {
@@ -126,6 +129,7 @@ impl<'a> PathTracer<'a> {
 
     /// [`PathTracer::trace_primary`] that also records the path's feature
     /// buffers in `aov` (see [`crate::aov`]); the radiance is the same.
+    #[inline(always)]
     pub fn trace_primary_aov(
         &self,
         camera_ray: Ray,
@@ -144,6 +148,7 @@ impl<'a> PathTracer<'a> {
     /// material emits, so no surface the path meets is a light); with
     /// `AOV` the feature buffers are recorded into `aov`; with `MASKED`
     /// (some material is alpha-tested) hits go through `alpha.rs`.
+    #[inline(always)]
     fn trace<const EMISSIVE: bool, const AOV: bool, const MASKED: bool>(
         &self,
         camera_ray: Ray,

@@ -60,6 +60,7 @@
 //! # Ok::<(), lucent_render::ExtractError>(())
 //! ```
 
+use crate::isa::{Isa, Kernel};
 use crate::render::PixelSampler;
 use crate::{ExactRgb, Film, RayStats, RenderOutput, RenderScene, RenderSettings};
 use lucent_geom::DVec3;
@@ -144,22 +145,21 @@ fn pass(
 ) -> Option<RayStats> {
     let width = film.width() as usize;
     let cut = AtomicBool::new(false);
+    let isa = Isa::detect();
     let stats = film
         .sum
         .par_chunks_mut(width.max(1))
         .enumerate()
         .map(|(row, pixels)| {
-            let mut stats = RayStats::default();
-            for (col, px) in pixels.iter_mut().enumerate() {
-                if cut.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d) {
-                    cut.store(true, Ordering::Relaxed);
-                    return stats;
-                }
-                for s in samples.clone() {
-                    px.add_sample(sampler.sample(col as u32, row as u32, s, &mut stats));
-                }
-            }
-            stats
+            let (cut, samples) = (&cut, samples.clone());
+            isa.run(PassRow {
+                sampler,
+                row: row as u32,
+                pixels,
+                samples,
+                deadline,
+                cut,
+            })
         })
         .reduce(RayStats::default, |a, b| a + b);
     if cut.load(Ordering::Relaxed) {
@@ -223,6 +223,63 @@ impl AdaptiveOutput {
     }
 }
 
+/// One row of a [`pass`]: the work [`Isa::run`] compiles twice.
+struct PassRow<'r, 'a> {
+    sampler: &'r PixelSampler<'a>,
+    row: u32,
+    pixels: &'r mut [ExactRgb],
+    samples: Range<u32>,
+    deadline: Option<Instant>,
+    cut: &'r AtomicBool,
+}
+
+impl Kernel for PassRow<'_, '_> {
+    type Output = RayStats;
+
+    #[inline(always)]
+    fn run(self) -> RayStats {
+        let mut stats = RayStats::default();
+        for (col, px) in self.pixels.iter_mut().enumerate() {
+            if self.cut.load(Ordering::Relaxed) || self.deadline.is_some_and(|d| Instant::now() >= d) {
+                self.cut.store(true, Ordering::Relaxed);
+                return stats;
+            }
+            for s in self.samples.clone() {
+                px.add_sample(self.sampler.sample(col as u32, self.row, s, &mut stats));
+            }
+        }
+        stats
+    }
+}
+
+/// One round of a tile ([`Tile::refine`]): the work [`Isa::run`] compiles
+/// twice.
+struct Refine<'r, 'a> {
+    tile: &'r mut Tile,
+    sampler: &'r PixelSampler<'a>,
+}
+
+impl Kernel for Refine<'_, '_> {
+    type Output = RayStats;
+
+    #[inline(always)]
+    fn run(self) -> RayStats {
+        let Refine { tile, sampler } = self;
+        let mut stats = RayStats::default();
+        for (i, (s, q)) in tile.sum.iter_mut().zip(&mut tile.sum_sq).enumerate() {
+            let (col, row) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
+            for idx in tile.n..tile.next {
+                let v = sampler.sample(col, row, idx, &mut stats);
+                s.add_sample(v);
+                let v = v.as_dvec3();
+                *q += v * v;
+            }
+        }
+        tile.n = tile.next;
+        stats
+    }
+}
+
 /// One tile's pixels, their running sums and their shared sample count.
 struct Tile {
     x0: u32,
@@ -266,20 +323,10 @@ impl Tile {
         self.sum.iter().map(|s| (s.to_dvec3() * k).element_sum()).sum()
     }
 
-    /// Takes samples `n..next` of every pixel.
-    fn refine(&mut self, sampler: &PixelSampler<'_>) -> RayStats {
-        let mut stats = RayStats::default();
-        for (i, (s, q)) in self.sum.iter_mut().zip(&mut self.sum_sq).enumerate() {
-            let (col, row) = (self.x0 + i as u32 % self.w, self.y0 + i as u32 / self.w);
-            for idx in self.n..self.next {
-                let v = sampler.sample(col, row, idx, &mut stats);
-                s.add_sample(v);
-                let v = v.as_dvec3();
-                *q += v * v;
-            }
-        }
-        self.n = self.next;
-        stats
+    /// Takes samples `n..next` of every pixel, in the copy of the loop
+    /// `isa` names.
+    fn refine(&mut self, sampler: &PixelSampler<'_>, isa: Isa) -> RayStats {
+        isa.run(Refine { tile: self, sampler })
     }
 }
 
@@ -398,11 +445,12 @@ pub fn render_to_error(scene: &RenderScene, settings: &RenderSettings, target: f
     let n_values = 3.0 * f64::from(width) * f64::from(height);
     let mut stats = RayStats::default();
     let mut rounds = 0;
+    let isa = Isa::detect();
     let (sq, mean) = loop {
         stats = stats
             + tiles
                 .par_iter_mut()
-                .map(|t| t.refine(&sampler))
+                .map(|t| t.refine(&sampler, isa))
                 .reduce(RayStats::default, |a, b| a + b);
         rounds += 1;
         let (sq, mean) = estimate(&tiles);

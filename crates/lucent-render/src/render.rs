@@ -1,10 +1,11 @@
 //! The parallel, deterministic render loop.
 
-use crate::aov::{AovFilm, AovSample};
+use crate::aov::{AovFilm, AovSample, DeltaLightSums, SpecularSums};
+use crate::isa::{Isa, Kernel};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
-use crate::{Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
-use lucent_geom::{Pcg32, Ray, Vec3, hash_u64, hash_u64_from};
+use crate::{ExactRgb, Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
+use lucent_geom::{DVec3, Pcg32, Ray, Vec3, hash_u64, hash_u64_from};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -117,7 +118,7 @@ pub fn render_samples(
     progress: &(dyn Fn(usize) + Sync),
 ) -> RayStats {
     let never = AtomicBool::new(false);
-    let stats = trace_rows(scene, settings, film, samples.clone(), progress, &never);
+    let stats = trace_rows(Isa::detect(), scene, settings, film, samples.clone(), progress, &never);
     film.n_samples += samples.len() as u32;
     stats
 }
@@ -154,7 +155,7 @@ pub fn render_samples_cancellable(
     samples: Range<u32>,
     cancel: &AtomicBool,
 ) -> Option<RayStats> {
-    let stats = trace_rows(scene, settings, film, samples.clone(), &|_| {}, cancel);
+    let stats = trace_rows(Isa::detect(), scene, settings, film, samples.clone(), &|_| {}, cancel);
     if cancel.load(Ordering::Relaxed) {
         return None;
     }
@@ -189,7 +190,16 @@ pub fn render_samples_aov(
     progress: &(dyn Fn(usize) + Sync),
 ) -> RayStats {
     let never = AtomicBool::new(false);
-    let (stats, recorded) = trace_rows_aov(scene, settings, film, aovs, samples.clone(), progress, &never);
+    let (stats, recorded) = trace_rows_aov(
+        Isa::detect(),
+        scene,
+        settings,
+        film,
+        aovs,
+        samples.clone(),
+        progress,
+        &never,
+    );
     film.n_samples += samples.len() as u32;
     if recorded {
         aovs.n_samples += samples.len() as u32;
@@ -208,7 +218,16 @@ pub fn render_samples_aov_cancellable(
     samples: Range<u32>,
     cancel: &AtomicBool,
 ) -> Option<RayStats> {
-    let (stats, recorded) = trace_rows_aov(scene, settings, film, aovs, samples.clone(), &|_| {}, cancel);
+    let (stats, recorded) = trace_rows_aov(
+        Isa::detect(),
+        scene,
+        settings,
+        film,
+        aovs,
+        samples.clone(),
+        &|_| {},
+        cancel,
+    );
     if cancel.load(Ordering::Relaxed) {
         return None;
     }
@@ -260,7 +279,7 @@ impl<'a> PixelSampler<'a> {
 
     /// `hash_u64(&[seed, pixel])` for pixel (`col`, `row`): what
     /// [`PixelSampler::sample_keyed`] continues with the sample index.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn pixel_key(&self, col: u32, row: u32) -> u64 {
         hash_u64_from(self.seed_hash, &[u64::from(row) * self.width + u64::from(col)])
     }
@@ -272,7 +291,7 @@ impl<'a> PixelSampler<'a> {
 
     /// [`PixelSampler::sample_keyed`] that also records the sample's AOVs
     /// (path tracer; the Whitted integrator leaves `aov` as it is).
-    #[inline]
+    #[inline(always)]
     fn sample_aov_keyed(
         &self,
         key: u64,
@@ -300,7 +319,7 @@ impl<'a> PixelSampler<'a> {
     }
 
     /// [`PixelSampler::path_start`] with the pixel's key already made.
-    #[inline]
+    #[inline(always)]
     fn path_start_keyed(&self, key: u64, col: u32, row: u32, s: u32) -> (Ray, Pcg32) {
         let mut rng = Pcg32::new(hash_u64_from(key, &[u64::from(s)]), 0);
         let (jx, jy) = (rng.next_f32(), rng.next_f32());
@@ -308,14 +327,14 @@ impl<'a> PixelSampler<'a> {
     }
 
     /// Radiance of sample `s` of pixel (`col`, `row`).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
         self.sample_keyed(self.pixel_key(col, row), col, row, s, stats)
     }
 
     /// [`PixelSampler::sample`] with the pixel's key (from
     /// [`PixelSampler::pixel_key`]) already made.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn sample_keyed(&self, key: u64, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
         match &self.tracer {
             Tracer::Whitted(whitted) => {
@@ -336,8 +355,10 @@ impl<'a> PixelSampler<'a> {
     }
 }
 
-/// Adds `samples` to each row of `film` not started before `cancel` was set.
+/// Adds `samples` to each row of `film` not started before `cancel` was set,
+/// each row's samples in the copy of the loop `isa` names.
 fn trace_rows(
+    isa: Isa,
     scene: &RenderScene,
     settings: &RenderSettings,
     film: &mut Film,
@@ -352,26 +373,54 @@ fn trace_rows(
         .par_chunks_mut(width.max(1))
         .enumerate()
         .map(|(row, pixels)| {
-            let mut stats = RayStats::default();
             if cancel.load(Ordering::Relaxed) {
-                return stats;
+                return RayStats::default();
             }
-            for (col, px) in pixels.iter_mut().enumerate() {
-                let (col, row) = (col as u32, row as u32);
-                let key = sampler.pixel_key(col, row);
-                for s in samples.clone() {
-                    px.add_sample(sampler.sample_keyed(key, col, row, s, &mut stats));
-                }
-            }
+            let sampler = &sampler;
+            let samples = samples.clone();
+            let stats = isa.run(Row {
+                sampler,
+                row: row as u32,
+                pixels,
+                samples,
+            });
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
             stats
         })
         .reduce(RayStats::default, |a, b| a + b)
 }
 
+/// The samples of one row of [`trace_rows`]: the work [`Isa::run`] compiles
+/// twice, so all it calls is `#[inline(always)]` down to the path loop.
+struct Row<'r, 'a> {
+    sampler: &'r PixelSampler<'a>,
+    row: u32,
+    pixels: &'r mut [ExactRgb],
+    samples: Range<u32>,
+}
+
+impl Kernel for Row<'_, '_> {
+    type Output = RayStats;
+
+    #[inline(always)]
+    fn run(self) -> RayStats {
+        let mut stats = RayStats::default();
+        for (col, px) in self.pixels.iter_mut().enumerate() {
+            let (col, row) = (col as u32, self.row);
+            let key = self.sampler.pixel_key(col, row);
+            for s in self.samples.clone() {
+                px.add_sample(self.sampler.sample_keyed(key, col, row, s, &mut stats));
+            }
+        }
+        stats
+    }
+}
+
 /// [`trace_rows`] that also records AOVs; returns whether it did (the
 /// path tracer, and `aovs` the film's size).
+#[allow(clippy::too_many_arguments, reason = "trace_rows' arguments and the AOV film")]
 fn trace_rows_aov(
+    isa: Isa,
     scene: &RenderScene,
     settings: &RenderSettings,
     film: &mut Film,
@@ -382,7 +431,7 @@ fn trace_rows_aov(
 ) -> (RayStats, bool) {
     let sampler = PixelSampler::new(scene, settings, film.width(), film.height());
     if !sampler.records_aovs() || (aovs.width(), aovs.height()) != (film.width(), film.height()) {
-        return (trace_rows(scene, settings, film, samples, progress, cancel), false);
+        return (trace_rows(isa, scene, settings, film, samples, progress, cancel), false);
     }
     let width = film.width() as usize;
     let rows_done = AtomicUsize::new(0);
@@ -395,31 +444,70 @@ fn trace_rows_aov(
         .zip(aovs.specular.par_chunks_mut(width.max(1)))
         .zip(aovs.delta.par_chunks_mut(width.max(1)))
         .enumerate()
-        .map(|(row, (((((pixels, albedo), normal), depth), specular), delta))| {
-            let mut stats = RayStats::default();
+        .map(|(row, rows)| {
             if cancel.load(Ordering::Relaxed) {
-                return stats;
+                return RayStats::default();
             }
-            let aov_pixels = albedo
-                .iter_mut()
-                .zip(normal.iter_mut())
-                .zip(depth.iter_mut())
-                .zip(specular.iter_mut())
-                .zip(delta.iter_mut());
-            for (col, (px, ((((a, n), d), sp), dl))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
-                let (col, row) = (col as u32, row as u32);
-                let key = sampler.pixel_key(col, row);
-                for s in samples.clone() {
-                    let mut aov = AovSample::default();
-                    px.add_sample(sampler.sample_aov_keyed(key, col, row, s, &mut stats, &mut aov));
-                    aov.add_to(a, n, d, sp, dl);
-                }
-            }
+            let sampler = &sampler;
+            let samples = samples.clone();
+            let stats = isa.run(AovRow {
+                sampler,
+                row: row as u32,
+                rows,
+                samples,
+            });
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
             stats
         })
         .reduce(RayStats::default, |a, b| a + b);
     (stats, true)
+}
+
+/// One row's beauty sums and AOV sums, as [`trace_rows_aov`] splits them.
+type AovRows<'r> = (
+    (
+        (
+            ((&'r mut [ExactRgb], &'r mut [DVec3]), &'r mut [DVec3]),
+            &'r mut [(f64, u32)],
+        ),
+        &'r mut [SpecularSums],
+    ),
+    &'r mut [DeltaLightSums],
+);
+
+/// The samples of one row of [`trace_rows_aov`], as [`Row`] is of
+/// [`trace_rows`].
+struct AovRow<'r, 'a> {
+    sampler: &'r PixelSampler<'a>,
+    row: u32,
+    rows: AovRows<'r>,
+    samples: Range<u32>,
+}
+
+impl Kernel for AovRow<'_, '_> {
+    type Output = RayStats;
+
+    #[inline(always)]
+    fn run(self) -> RayStats {
+        let mut stats = RayStats::default();
+        let (((((pixels, albedo), normal), depth), specular), delta) = self.rows;
+        let aov_pixels = albedo
+            .iter_mut()
+            .zip(normal.iter_mut())
+            .zip(depth.iter_mut())
+            .zip(specular.iter_mut())
+            .zip(delta.iter_mut());
+        for (col, (px, ((((a, n), d), sp), dl))) in pixels.iter_mut().zip(aov_pixels).enumerate() {
+            let (col, row) = (col as u32, self.row);
+            let key = self.sampler.pixel_key(col, row);
+            for s in self.samples.clone() {
+                let mut aov = AovSample::default();
+                px.add_sample(self.sampler.sample_aov_keyed(key, col, row, s, &mut stats, &mut aov));
+                aov.add_to(a, n, d, sp, dl);
+            }
+        }
+        stats
+    }
 }
 
 #[cfg(test)]
@@ -455,6 +543,67 @@ mod tests {
         assert_eq!(render_samples_cancellable(&rs, &settings, &mut film, 2..3, &stop), None);
         assert_eq!(film.n_samples(), 2);
         assert_eq!(film.to_srgb8(), plain.to_srgb8(), "no row was started after the cancel");
+    }
+
+    /// Renders `scene` through `isa`'s copy of the loop, plain and with AOVs.
+    fn render_in(isa: Isa, rs: &RenderScene, settings: &RenderSettings) -> (Film, Film, AovFilm) {
+        let (w, h) = (settings.width, settings.height);
+        let never = AtomicBool::new(false);
+        let mut plain = Film::new(w, h);
+        trace_rows(isa, rs, settings, &mut plain, 0..3, &|_| {}, &never);
+        let (mut film, mut aovs) = (Film::new(w, h), AovFilm::new(w, h));
+        trace_rows_aov(isa, rs, settings, &mut film, &mut aovs, 0..3, &|_| {}, &never);
+        (plain, film, aovs)
+    }
+
+    #[test]
+    fn the_avx2_copy_of_the_loop_renders_the_baseline_bits() {
+        use lucent_scene::fixtures;
+        // Where the processor has the features, the copy compared is the AVX2 one.
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            let all = has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt") && has!("popcnt");
+            assert_eq!(Isa::detect().is_avx2(), all);
+        }
+        let texels = (0..32u8).map(|i| Vec3::new(f32::from(i) * 0.1, 0.5, 2.0)).collect();
+        let map = lucent_shading::EnvironmentMap::new(8, 4, texels).unwrap_or_else(|e| panic!("{e}"));
+        let sky = lucent_scene::Environment {
+            map: Some(std::sync::Arc::new(map)),
+            ..fixtures::dark()
+        };
+        let scenes = [
+            fixtures::ball_under_sun(),
+            fixtures::glowing_box(0.7, 4.0),
+            fixtures::varnished_floor_under_ceiling(),
+            fixtures::mirror_under_ceiling(),
+            fixtures::furnace_sphere(sky),
+        ];
+        for (i, scene) in scenes.iter().enumerate() {
+            let rs = match extract(scene) {
+                Ok(rs) => rs,
+                Err(e) => panic!("{e}"),
+            };
+            for integrator in [Integrator::Path, Integrator::Whitted] {
+                let settings = RenderSettings {
+                    width: 20,
+                    height: 12,
+                    integrator,
+                    ..RenderSettings::default()
+                };
+                let (plain, film, aovs) = render_in(Isa::baseline(), &rs, &settings);
+                let (plain2, film2, aovs2) = render_in(Isa::detect(), &rs, &settings);
+                assert!(
+                    plain.n_samples() == 0 && plain.sum.iter().any(|p| *p != ExactRgb::ZERO),
+                    "scene {i}"
+                );
+                assert!(
+                    plain == plain2 && film == film2,
+                    "scene {i} {integrator:?}: the beauty differs"
+                );
+                assert!(aovs == aovs2, "scene {i} {integrator:?}: the AOVs differ");
+            }
+        }
     }
 
     #[test]
