@@ -373,21 +373,32 @@ fn trace_rows(
         .par_chunks_mut(width.max(1))
         .enumerate()
         .map(|(row, pixels)| {
-            if cancel.load(Ordering::Relaxed) {
-                return RayStats::default();
-            }
-            let sampler = &sampler;
-            let samples = samples.clone();
-            let stats = isa.run(Row {
-                sampler,
+            let kernel = Row {
+                sampler: &sampler,
                 row: row as u32,
                 pixels,
-                samples,
-            });
-            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
-            stats
+                samples: samples.clone(),
+            };
+            run_row(isa, kernel, cancel, progress, &rows_done)
         })
         .reduce(RayStats::default, |a, b| a + b)
+}
+
+/// Runs one row's `kernel` in `isa`'s copy of the loop unless `cancel` is
+/// set (then the row adds nothing), and reports the rows done so far.
+fn run_row<K: Kernel<Output = RayStats>>(
+    isa: Isa,
+    kernel: K,
+    cancel: &AtomicBool,
+    progress: &(dyn Fn(usize) + Sync),
+    rows_done: &AtomicUsize,
+) -> RayStats {
+    if cancel.load(Ordering::Relaxed) {
+        return RayStats::default();
+    }
+    let stats = isa.run(kernel);
+    progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
+    stats
 }
 
 /// The samples of one row of [`trace_rows`]: the work [`Isa::run`] compiles
@@ -445,19 +456,13 @@ fn trace_rows_aov(
         .zip(aovs.delta.par_chunks_mut(width.max(1)))
         .enumerate()
         .map(|(row, rows)| {
-            if cancel.load(Ordering::Relaxed) {
-                return RayStats::default();
-            }
-            let sampler = &sampler;
-            let samples = samples.clone();
-            let stats = isa.run(AovRow {
-                sampler,
+            let kernel = AovRow {
+                sampler: &sampler,
                 row: row as u32,
                 rows,
-                samples,
-            });
-            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
-            stats
+                samples: samples.clone(),
+            };
+            run_row(isa, kernel, cancel, progress, &rows_done)
         })
         .reduce(RayStats::default, |a, b| a + b);
     (stats, true)
