@@ -7,7 +7,7 @@
 //! `spp * (K - 1) / N .. spp * K / N` of every pixel ([`Share::samples`]),
 //! so each costs about `1/N` of the render. Every sample comes from the
 //! stream keyed by (seed, pixel, sample index) whoever renders it, and the
-//! film's sums are exact ([`ExactRgb`](crate::ExactRgb)), so adding the
+//! film's sums are exact ([`ExactRgb`]), so adding the
 //! shares' sums in any order gives exactly the film of one render.
 //!
 //! The partial file format (version 1), all integers little-endian:

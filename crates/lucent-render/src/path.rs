@@ -7,7 +7,7 @@
 //!   weighted against light sampling by the power heuristic (weight 1 for
 //!   camera rays and after delta lobes, which light sampling cannot
 //!   reproduce);
-//! - samples one light ([`LightSet::sample`]: a light picked by power, a
+//! - samples one light ([`LightSet::sample`](crate::lights::LightSet::sample): a light picked by power, a
 //!   point uniform on it) and traces a shadow ray, weighted against BSDF
 //!   sampling by the power heuristic (weight 1 for point and directional
 //!   lights), unless the BSDF is purely specular;
@@ -56,7 +56,7 @@
 //!
 //! [`PathTracer::trace_primary_aov`] traces the very same path (the same
 //! random numbers, the same radiance) and also fills an
-//! [`AovSample`](crate::aov::AovSample) at the first non-specular surface;
+//! [`AovSample`] at the first non-specular surface;
 //! [`PathTracer::trace_primary`] is its variant compiled without that work.
 
 use crate::aov::{AovRecorder, AovSample};

@@ -12,7 +12,7 @@
 //!
 //! A glTF file (`.gltf`, `.glb`) is loaded as a scene twice over: with its
 //! textures decoded and with image decoding skipped
-//! ([`GltfOptions::skip_images`]); MB/s counts every byte read through the
+//! ([`GltfOptions::skip_images`](lucent_assets::GltfOptions::skip_images)); MB/s counts every byte read through the
 //! asset source (the document, its buffers and, when decoded, its images).
 //! Its peak memory is not measured.
 
