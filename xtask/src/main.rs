@@ -162,6 +162,10 @@ fn ci() -> Result<(), String> {
         "-D",
         "warnings",
     ]))?;
+    // The docs, with every intra-doc link resolved.
+    run(cargo()
+        .env("RUSTDOCFLAGS", "-D warnings")
+        .args(["doc", "--workspace", "--no-deps", "--locked"]))?;
     // Window tests need a display: use Xvfb when there is none.
     let headless = std::env::var_os("DISPLAY").is_none();
     if headless && has_program("xvfb-run") {
