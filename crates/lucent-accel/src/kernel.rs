@@ -46,9 +46,9 @@ use crate::wide::{BoxTest, FAR_SCALE, NEAR_SCALE, SlabRay, W, WideNode};
 use lucent_geom::{PackHits, Ray, TriangleHit, TrianglePack8, TriangleTest, edge_f64};
 use std::arch::x86_64::{
     __m128, __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_add_ps, _mm_blend_ps,
-    _mm_cmplt_ps, _mm_cmpunord_ps, _mm_cvtsd_f64, _mm_div_ps, _mm_loadl_epi64, _mm_loadu_si128, _mm_movemask_ps,
-    _mm_mul_ps, _mm_permute_ps, _mm_permutevar_ps, _mm_set1_ps, _mm_setr_ps, _mm_setzero_ps, _mm_sub_ps,
-    _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256, _mm256_andnot_ps, _mm256_blendv_ps,
+    _mm_cmplt_ps, _mm_cmpunord_ps, _mm_cvtsd_f64, _mm_div_ps, _mm_loadl_epi64, _mm_loadu_ps, _mm_loadu_si128,
+    _mm_movemask_ps, _mm_mul_ps, _mm_permute_ps, _mm_permutevar_ps, _mm_set1_ps, _mm_setr_ps, _mm_setzero_ps,
+    _mm_sub_ps, _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256, _mm256_andnot_ps, _mm256_blendv_ps,
     _mm256_broadcastss_ps, _mm256_castpd256_pd128, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32,
     _mm256_cvtepu8_epi32, _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps, _mm256_loadu_si256,
     _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
@@ -156,15 +156,14 @@ impl BoxTest for Avx2 {
     /// `prepare_boxes`' bit for bit (a test checks it).
     #[inline(always)]
     fn prepare_ray(self, ray: &Ray) -> Option<Slab8> {
-        let (o, d) = (ray.origin.to_array(), ray.dir.to_array());
         // SAFETY: `self` proves AVX2 (and with it SSE). (No closures here: a
         // closure would not be compiled for AVX, and the intrinsics in it
         // would not inline.)
         unsafe {
-            let o4 = _mm_setr_ps(o[0], o[1], o[2], 0.0);
-            let d4 = _mm_setr_ps(d[0], d[1], d[2], 0.0);
+            let [o4, d4] = load_ray(ray);
             // 0 in every lane exactly when the six components are finite
-            // (else a NaN lane): `traceable`'s test.
+            // (else a NaN lane; lane 3 repeats a component): `traceable`'s
+            // test.
             let zero = _mm_add_ps(_mm_sub_ps(o4, o4), _mm_sub_ps(d4, d4));
             if _mm_movemask_ps(_mm_cmpunord_ps(zero, zero)) != 0 {
                 return None;
@@ -276,6 +275,29 @@ const fn row_offsets(far: bool) -> [[usize; 3]; 8] {
         mask += 1;
     }
     table
+}
+
+// `load_ray` reads a ray as six consecutive floats.
+const _: () =
+    assert!(std::mem::offset_of!(Ray, origin) == 0 && std::mem::offset_of!(Ray, dir) == 12 && size_of::<Ray>() == 24);
+
+/// A ray's origin and direction in four-lane registers, `(x, y, z, _)`
+/// each, in two loads: lane 3 holds another component of the ray (the
+/// direction's x, the origin's z), finite exactly when that one is.
+///
+/// # Safety
+/// Needs AVX (an [`Avx2`] proves it).
+#[inline(always)]
+unsafe fn load_ray(ray: &Ray) -> [__m128; 2] {
+    let at = std::ptr::from_ref(ray).cast::<f32>();
+    // SAFETY: the caller has AVX; a `Ray` is six floats, origin then
+    // direction (the assertion above; `Vec3` is three `f32`s, `repr(C)`),
+    // so each load reads four of them: 0..4 and 2..6.
+    unsafe {
+        let o = _mm_loadu_ps(at);
+        let d = _mm_permute_ps::<0b00_11_10_01>(_mm_loadu_ps(at.add(2)));
+        [o, d]
+    }
 }
 
 /// Lanes 0, 1 and 2 of `v`, each in every lane of a 256-bit register.
@@ -427,7 +449,6 @@ impl LeafTest for Avx2 {
     fn prepare(self, ray: &Ray, _test: TriangleTest) -> Ray8 {
         let a = ray.dir.abs();
         let d = ray.dir.to_array();
-        let o = ray.origin.to_array();
         // As `PreparedRay::new`: NaN compares false and leaves z.
         let x_largest = a.x > a.y && a.x > a.z;
         let kz = if x_largest { 0 } else { 2 - usize::from(a.y > a.z) };
@@ -438,9 +459,10 @@ impl LeafTest for Avx2 {
         // would not inline.)
         unsafe {
             let idx = _mm_loadu_si128(AXES[case].as_ptr().cast());
+            let [o4, d4] = load_ray(ray);
             // (d[kx], d[ky], d[kz], d[kz]) and the origin likewise.
-            let dk = _mm_permutevar_ps(_mm_setr_ps(d[0], d[1], d[2], 0.0), idx);
-            let ok = _mm_permutevar_ps(_mm_setr_ps(o[0], o[1], o[2], 0.0), idx);
+            let dk = _mm_permutevar_ps(d4, idx);
+            let ok = _mm_permutevar_ps(o4, idx);
             let dz = _mm_permute_ps::<0b10_10_10_10>(dk);
             // (d[kx] / dz, d[ky] / dz, 1 / dz, _).
             let s = _mm_div_ps(_mm_blend_ps::<0b0100>(dk, _mm_set1_ps(1.0)), dz);
