@@ -537,8 +537,10 @@ impl LeafTest for Avx2 {
                 _mm256_mul_pd(_mm256_permute4x64_pd::<YZX>(e1), _mm256_permute4x64_pd::<ZXY>(e2)),
                 _mm256_mul_pd(_mm256_permute4x64_pd::<YZX>(e2), _mm256_permute4x64_pd::<ZXY>(e1)),
             );
-            let o = widen(ray.origin.x, ray.origin.y, ray.origin.z);
-            let d = widen(ray.dir.x, ray.dir.y, ray.dir.z);
+            // Lane 3 holds another of the ray's components; it meets only
+            // lane 3 of the products, which `sum3` leaves out.
+            let [o4, d4] = load_ray(ray);
+            let (o, d) = (_mm256_cvtps_pd(o4), _mm256_cvtps_pd(d4));
             let num = sum3(_mm256_mul_pd(n, _mm256_sub_pd(a, o)));
             let den = sum3(_mm256_mul_pd(n, d));
             let t = (num / den) as f32;
