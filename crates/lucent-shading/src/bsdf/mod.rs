@@ -263,6 +263,37 @@ impl LocalDir {
     }
 }
 
+/// Where a caller's BSDF calls find the general mixture's code (every
+/// mixture but the plain Lambertian one, which [`Bsdf::sample_local_in`]
+/// and [`Bsdf::eval_pdf_in`] handle inline): [`Compiled`], the out-of-line
+/// functions compiled with this crate, or a copy the caller compiled from
+/// [`Bsdf::sample_mixture_inline`] and [`Bsdf::eval_pdf_mixture`] (for
+/// other target features). Every implementation must give the numbers of
+/// those two functions, bit for bit.
+pub trait MixtureCode: Copy {
+    /// [`Bsdf::sample_mixture_inline`]'s sample.
+    fn sample(self, bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
+    /// [`Bsdf::eval_pdf_mixture`]'s value and density.
+    fn eval_pdf(self, bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32);
+}
+
+/// The general mixture's code as this crate compiles it: one out-of-line
+/// function each for sampling and for evaluation.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Compiled;
+
+impl MixtureCode for Compiled {
+    #[inline(always)]
+    fn sample(self, bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        bsdf.sample_mixture(wo.0, u_lobe, u)
+    }
+
+    #[inline(always)]
+    fn eval_pdf(self, bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        bsdf.eval_pdf_unit(wo.0, wi.0)
+    }
+}
+
 impl Bsdf {
     /// A mixture of lobes; weights are taken as given (callers conserve
     /// energy), NaN, infinite or negative components read as zero.
@@ -536,10 +567,18 @@ impl Bsdf {
     /// normalised: the same two numbers, computed once.
     #[inline]
     pub fn eval_pdf(&self, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        self.eval_pdf_in(Compiled, wo, wi)
+    }
+
+    /// [`Bsdf::eval_pdf`] with the general mixture reached through `code`:
+    /// the same two numbers. Always inlined, like the plain Lambertian case
+    /// it handles itself.
+    #[inline(always)]
+    pub fn eval_pdf_in<C: MixtureCode>(&self, code: C, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
         if self.only_diffuse() {
             return self.lambert_eval_pdf(wo.0, wi.0);
         }
-        self.eval_pdf_unit(wo.0, wi.0)
+        code.eval_pdf(self, wo, wi)
     }
 
     /// Whether the only lobe `sample` ever picks is a plain (uncoupled)
@@ -618,11 +657,28 @@ impl Bsdf {
         if p.is_finite() { p } else { 0.0 }
     }
 
+    /// `eval_unit` and `pdf_unit` in one pass, out of line (see
+    /// [`Bsdf::eval_pdf_mixture`]).
+    fn eval_pdf_unit(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.eval_pdf_general(wo, wi)
+    }
+
+    /// [`Bsdf::eval_pdf`] of any mixture, without its plain Lambertian
+    /// shortcut (whose numbers it makes too): the body of the out-of-line
+    /// code that [`Compiled`] calls, always inlined, so that a caller can
+    /// compile a copy of its own (lucent-render's AVX2 copy of the render
+    /// loop does, bit for bit the same).
+    #[inline(always)]
+    pub fn eval_pdf_mixture(&self, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        self.eval_pdf_general(wo.0, wi.0)
+    }
+
     /// `eval_unit` and `pdf_unit` in one pass: each number is made by the
     /// very operations the two make apart, but what both need (the
     /// Lambertian term, the Phong power, the GGX half vector, `Lambda(wo)`
     /// and `D(h)`) is computed once.
-    fn eval_pdf_unit(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    #[inline(always)]
+    fn eval_pdf_general(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let mut f = Vec3::ZERO;
         let mut p = 0.0;
         let pd = self.prob(DIFFUSE);
@@ -669,6 +725,14 @@ impl Bsdf {
     /// other mixtures are a call away.
     #[inline(always)]
     pub fn sample_local(&self, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_local_in(Compiled, wo, u_lobe, u)
+    }
+
+    /// [`Bsdf::sample_local`] with the general mixture reached through
+    /// `code`: the same sample.
+    #[inline(always)]
+    pub fn sample_local_in<C: MixtureCode>(&self, code: C, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let wo_dir = wo;
         let wo = wo.0;
         if self.only_diffuse() {
             // The lobe choice of the general code below: the first
@@ -696,13 +760,28 @@ impl Bsdf {
                 delta: false,
             });
         }
-        self.sample_mixture(wo, u_lobe, u)
+        code.sample(self, wo_dir, u_lobe, u)
+    }
+
+    /// The general `sample`, out of line (see [`Bsdf::sample_mixture_inline`]).
+    #[inline(never)]
+    fn sample_mixture(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_general(wo, u_lobe, u)
+    }
+
+    /// [`Bsdf::sample_local`] of any mixture, without its plain Lambertian
+    /// shortcut (whose sample it makes too): the body of the out-of-line
+    /// code that [`Compiled`] calls, always inlined, so that a caller can
+    /// compile a copy of its own (see [`Bsdf::eval_pdf_mixture`]).
+    #[inline(always)]
+    pub fn sample_mixture_inline(&self, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_general(wo.0, u_lobe, u)
     }
 
     /// The general `sample`: a lobe picked by the selection probabilities,
     /// a direction from it, the mixture's density and weight.
-    #[inline(never)]
-    fn sample_mixture(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    #[inline(always)]
+    fn sample_general(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let k = self.cdf.iter().position(|&c| u_lobe < c)?;
         let p = self.prob(k);
         let lo = self.cdf[k] - p;
@@ -723,7 +802,7 @@ impl Bsdf {
             _ => return self.sample_dielectric(wo, p, u_rest),
         };
         let wi = unit(wi)?;
-        let (f, pdf) = self.eval_pdf_unit(wo, wi);
+        let (f, pdf) = self.eval_pdf_general(wo, wi);
         if pdf <= 0.0 {
             return None;
         }
