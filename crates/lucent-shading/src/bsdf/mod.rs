@@ -228,6 +228,21 @@ fn unit(v: Vec3) -> Option<Vec3> {
     (u.z != 0.0).then_some(u)
 }
 
+/// `v` normalised as glam's `normalize_or_zero` gives it, bit for bit: the
+/// same dot product, root, reciprocal and product, kept when the
+/// reciprocal is finite and positive, which `unit`'s two comparisons on
+/// the squared length decide without the bit tests the compiler makes of
+/// `is_finite` (zero otherwise).
+#[inline]
+pub(crate) fn unit_or_zero(v: Vec3) -> Vec3 {
+    let l2 = v.dot(v);
+    if l2 > 0.0 && l2 <= f32::MAX {
+        v * (1.0 / l2.sqrt())
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// A direction in a [`Frame`]'s coordinates as every BSDF call takes it:
 /// unit length, off the surface plane (`z != 0`).
 ///
@@ -815,7 +830,9 @@ impl Bsdf {
     }
 
     /// Reflection with probability `R` (Fresnel), refraction otherwise;
-    /// `p` is the probability that the dielectric lobe was chosen.
+    /// `p` is the probability that the dielectric lobe was chosen. Always
+    /// inlined: part of the mixture's sample, in each copy of it.
+    #[inline(always)]
     fn sample_dielectric(&self, wo: Vec3, p: f32, u: f32) -> Option<BsdfSample> {
         let outside = wo.z > 0.0;
         // Relative index of the side `wi` refracts into over `wo`'s side.
@@ -830,7 +847,7 @@ impl Bsdf {
             });
         }
         let n = if outside { Vec3::Z } else { Vec3::NEG_Z };
-        let wi = refract(-wo, n, 1.0 / eta_ti)?.normalize_or_zero();
+        let wi = unit_or_zero(refract(-wo, n, 1.0 / eta_ti)?);
         if wi.z * wo.z >= 0.0 {
             return None;
         }
