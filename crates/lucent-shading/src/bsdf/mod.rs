@@ -639,7 +639,7 @@ impl Bsdf {
                 f += self.conductor * g * self.conductor_fresnel(lobes::reflection_cos_half(wo, wi));
             }
         }
-        if f.is_finite() { f } else { Vec3::ZERO }
+        if all_finite(f) { f } else { Vec3::ZERO }
     }
 
     /// Solid-angle density with which [`sample`](Bsdf::sample) returns
@@ -721,7 +721,7 @@ impl Bsdf {
             p += pc * q;
         }
         (
-            if f.is_finite() { f } else { Vec3::ZERO },
+            if all_finite(f) { f } else { Vec3::ZERO },
             if p.is_finite() { p } else { 0.0 },
         )
     }
@@ -861,10 +861,18 @@ impl Bsdf {
     }
 }
 
-/// The sample, if every number in it is finite.
+/// The sample, if every number in it is finite and its density positive.
 #[inline]
 fn finite(s: BsdfSample) -> Option<BsdfSample> {
-    (s.wi.is_finite() && s.weight.is_finite() && s.pdf.is_finite() && s.pdf > 0.0).then_some(s)
+    (all_finite(s.wi) & all_finite(s.weight) & (s.pdf > 0.0) & (s.pdf <= f32::MAX)).then_some(s)
+}
+
+/// `v.is_finite()`, as one four-wide comparison of the magnitudes with
+/// `f32::MAX` (a number is finite exactly when its magnitude is at most
+/// that; NaN compares false) instead of a bit test per component.
+#[inline]
+fn all_finite(v: Vec3) -> bool {
+    Vec3A::from(v).abs().cmple(Vec3A::splat(f32::MAX)).all()
 }
 
 /// The cumulative lobe-selection probabilities of weights `w`: all zero

@@ -599,3 +599,27 @@ fn unit_or_zero_is_glams_normalize_or_zero_bit_for_bit() {
         assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "{v:?}");
     }
 }
+
+#[test]
+fn all_finite_is_vec3_is_finite() {
+    let specials = [
+        0.0,
+        -0.0,
+        1.0,
+        f32::from_bits(1),
+        f32::MAX,
+        -f32::MAX,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+        -f32::NAN,
+    ];
+    for &x in &specials {
+        for &y in &specials {
+            for &z in &specials {
+                let v = Vec3::new(x, y, z);
+                assert_eq!(super::all_finite(v), v.is_finite(), "{v:?}");
+            }
+        }
+    }
+}
