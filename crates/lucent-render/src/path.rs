@@ -88,13 +88,20 @@ pub struct PathTracer<'a> {
     /// texture): built once per render, not at every hit.
     plain_bsdfs: Vec<Option<Bsdf>>,
     /// Where the BSDF mixtures' out-of-line code runs: the copy the
-    /// processor supports, whichever copy of the loop calls it.
+    /// processor supports, or the one the caller names.
     isa: Isa,
 }
 
 impl<'a> PathTracer<'a> {
     /// A path tracer for `scene` with the path length limit of `settings`.
     pub fn new(scene: &'a RenderScene, settings: &RenderSettings) -> Self {
+        Self::new_in(scene, settings, Isa::detect())
+    }
+
+    /// [`PathTracer::new`] whose BSDF mixtures run `isa`'s copy of their
+    /// code (the copy of the loop that calls them, so that the baseline
+    /// loop is baseline throughout).
+    pub(crate) fn new_in(scene: &'a RenderScene, settings: &RenderSettings, isa: Isa) -> Self {
         let plain_bsdfs = scene
             .materials
             .iter()
@@ -112,7 +119,7 @@ impl<'a> PathTracer<'a> {
             },
             free_delta_bounces: settings.free_delta_bounces,
             plain_bsdfs,
-            isa: Isa::detect(),
+            isa,
         }
     }
 
