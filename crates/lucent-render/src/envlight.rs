@@ -75,6 +75,12 @@ pub struct EnvLight {
     /// texel times the intensity, the product [`EnvLight::eval`] would
     /// make at each call.
     constant: Option<Vec3>,
+    /// Per row, the cosines of its two polar angles (`row_thetas`), taken
+    /// once: the very numbers [`EnvLight::sample`] would take at each call.
+    row_cos: Vec<[f32; 2]>,
+    /// For a map of one texel, its one cell's corner luminances (what
+    /// `corners` gives for it), worked out once.
+    uniform_corners: [f32; 4],
 }
 
 impl EnvLight {
@@ -165,10 +171,18 @@ impl EnvLight {
             luminance_integral: (total * f64::from(intensity)) as f32,
             uniform_pdf: None,
             constant: None,
+            row_cos: (0..rows)
+                .map(|r| {
+                    let (theta0, theta1) = row_thetas(r, rows);
+                    [theta0.cos(), theta1.cos()]
+                })
+                .collect(),
+            uniform_corners: [0.0; 4],
         };
         if light.map.width() == 1 && light.map.height() == 1 {
             light.uniform_pdf = Some(light.cell_pdf(Vec3::Y));
             light.constant = Some(light.eval_map(Vec3::Y));
+            light.uniform_corners = light.corners(0, 0);
         }
         Some(light)
     }
@@ -254,7 +268,11 @@ impl EnvLight {
         let w1 = self.columns as usize + 1;
         let cdf = self.column_cdf.get(row * w1..(row + 1) * w1)?;
         let (column, u_s) = pick(cdf, u.y);
-        let [l00, l10, l01, l11] = self.corners(column as u32, row as u32);
+        // A map of one texel has one cell, column 0 of row 0.
+        let [l00, l10, l01, l11] = match self.constant {
+            Some(_) => self.uniform_corners,
+            None => self.corners(column as u32, row as u32),
+        };
         // Across the row (cos theta) by the summed columns, then across
         // the column at that height.
         let t = sample_linear(u_t, l00 + l10, l01 + l11);
@@ -263,15 +281,20 @@ impl EnvLight {
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
-        let (theta0, theta1) = row_thetas(row as u32, self.rows);
-        let (cos0, cos1) = (theta0.cos(), theta1.cos());
+        // `row` is a row of the table: its column distribution was found.
+        let &[cos0, cos1] = self.row_cos.get(row)?;
         let cos_t = (cos0 + t * (cos1 - cos0)).clamp(-1.0, 1.0);
         let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
         let mut x = (column as f32 + 0.5 + s) / self.columns as f32;
         x -= x.floor();
         let (sin_p, cos_p) = (2.0 * PI * x).sin_cos();
         let d_map = Vec3::new(sin_t * sin_p, cos_t, -sin_t * cos_p);
-        let radiance = self.map.lookup(Vec2::new(x, cos_t.acos() / PI)) * self.intensity;
+        // A map of one texel looks up its texel wherever `uv` lies, so its
+        // radiance is the constant's product, kept.
+        let radiance = match self.constant {
+            Some(radiance) => radiance,
+            None => self.map.lookup(Vec2::new(x, cos_t.acos() / PI)) * self.intensity,
+        };
         let wi = (self.world_from_map * d_map).normalize_or_zero();
         (wi != Vec3::ZERO).then_some(EnvSample { wi, radiance, pdf })
     }
@@ -295,7 +318,7 @@ impl EnvLight {
     /// Memory of the sampling tables, in bytes (the map itself is shared
     /// with the scene and not counted).
     pub fn table_bytes(&self) -> usize {
-        (self.row_cdf.len() + self.column_cdf.len()) * size_of::<f32>()
+        (self.row_cdf.len() + self.column_cdf.len()) * size_of::<f32>() + self.row_cos.len() * size_of::<[f32; 2]>()
     }
 }
 

@@ -12,7 +12,12 @@
 //! random numbers) is then a second copy in three-operand VEX code, with
 //! fewer spills; what stays out of line (the traversal, which picks its own
 //! AVX2 kernel in `lucent-accel`, and the few functions marked
-//! `#[inline(never)]`) runs its usual copy.
+//! `#[inline(never)]`) runs its usual copy, except for the general BSDF
+//! mixture's sampling and evaluation: `Isa` is a
+//! [`MixtureCode`](lucent_shading::MixtureCode), and the path tracer calls
+//! their AVX2 copies, compiled here from `lucent-shading`'s always-inlined
+//! bodies, as two out-of-line functions (too long to inline into the loop
+//! without making it spill more).
 //!
 //! Both copies round identically: Rust never contracts a multiply and an
 //! add into a fused multiply-add, nor reorders floating-point operations,
@@ -22,10 +27,14 @@
 //! [`Isa::run`] runs the kernel as it is compiled: that copy is the
 //! reference.
 //!
-//! `unsafe` here: the one call of the `#[target_feature]` function, sound
-//! because an [`Isa`] whose `avx2` is set exists only once [`Isa::detect`]
-//! found every feature it enables.
+//! `unsafe` here: the calls of the three `#[target_feature]` functions
+//! (the loop, the mixture's sample and its evaluation), sound because an
+//! [`Isa`] whose `avx2` is set exists only once [`Isa::detect`] found every
+//! feature they enable.
 #![allow(unsafe_code, reason = "the AVX2 copy of the render loop; see the module docs")]
+
+use lucent_geom::{Vec2, Vec3};
+use lucent_shading::{Bsdf, BsdfSample, Compiled, LocalDir, MixtureCode};
 
 /// Work that [`Isa::run`] runs in the copy the processor supports: the
 /// samples of one image row. `run` must be `#[inline(always)]`, and so must
@@ -79,6 +88,52 @@ impl Isa {
     }
 }
 
+/// The general BSDF mixture's code in the copy this value names: the
+/// out-of-line functions of `lucent-shading` (the baseline), or their
+/// bodies compiled here once more for AVX2, as out-of-line functions that
+/// the loop's AVX2 copy calls. Each gives the very same numbers
+/// (`tests::the_avx2_mixture_code_gives_the_baseline_bits`).
+impl MixtureCode for Isa {
+    #[inline(always)]
+    fn sample(self, bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `run`: `avx2` is set only once every feature
+            // the function enables was found.
+            return unsafe { sample_mixture_avx2(bsdf, wo, u_lobe, u) };
+        }
+        Compiled.sample(bsdf, wo, u_lobe, u)
+    }
+
+    #[inline(always)]
+    fn eval_pdf(self, bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `sample`.
+            return unsafe { eval_pdf_mixture_avx2(bsdf, wo, wi) };
+        }
+        Compiled.eval_pdf(bsdf, wo, wi)
+    }
+}
+
+/// [`Bsdf::sample_mixture_inline`] compiled for AVX2, out of line: a
+/// mixture's sample is long, and inlined into the loop it would make the
+/// loop keep more of its state in memory.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[inline(never)]
+fn sample_mixture_avx2(bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    bsdf.sample_mixture_inline(wo, u_lobe, u)
+}
+
+/// [`Bsdf::eval_pdf_mixture`] compiled for AVX2, out of line.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[inline(never)]
+fn eval_pdf_mixture_avx2(bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+    bsdf.eval_pdf_mixture(wo, wi)
+}
+
 /// Whether this processor has every feature [`run_avx2`] is compiled with.
 #[cfg(target_arch = "x86_64")]
 fn avx2_present() -> bool {
@@ -98,4 +153,127 @@ fn avx2_present() -> bool {
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
     kernel.run()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use lucent_geom::Pcg32;
+    use lucent_shading::{Material, MetallicRoughness};
+
+    /// Mixtures of every kind the materials make: plain lobes, the report's
+    /// mixtures (the seed scene's floor and translucent sphere among them),
+    /// glTF metallic-roughness, and the degenerate ones.
+    fn bsdfs() -> Vec<Bsdf> {
+        let grey = Vec3::splat(0.4);
+        let material = |m: Material| m.bsdf_at(None, None);
+        vec![
+            Bsdf::lambertian(Vec3::new(0.2, 0.5, 0.8)),
+            Bsdf::lambertian(Vec3::ZERO),
+            Bsdf::phong(grey, 20.0),
+            Bsdf::mirror(Vec3::splat(0.9)),
+            Bsdf::rough_conductor(grey, 0.3),
+            Bsdf::rough_conductor(grey, 0.01),
+            Bsdf::dielectric(1.5),
+            Bsdf::dielectric(1.05),
+            Bsdf::metallic_roughness(Vec3::new(1.0, 0.77, 0.34), 1.0, 0.3, 0.0, 1.5),
+            Bsdf::metallic_roughness(Vec3::new(0.3, 0.6, 0.2), 0.0, 0.5, 0.0, 1.5),
+            Bsdf::metallic_roughness(Vec3::ONE, 0.2, 0.0, 0.5, 1.45),
+            material(Material {
+                kd: Vec3::new(0.42, 0.36, 0.30),
+                kr: Vec3::splat(0.35),
+                roughness: 0.1,
+                ..Material::default()
+            }),
+            material(Material {
+                kd: grey,
+                kt: Vec3::splat(0.6),
+                ior: 1.05,
+                ..Material::default()
+            }),
+            material(Material {
+                kd: grey,
+                ks: Vec3::splat(0.3),
+                shininess: 40.0,
+                kr: Vec3::splat(0.2),
+                kt: Vec3::splat(0.1),
+                ior: 1.3,
+                ..Material::default()
+            }),
+            material(Material::metallic_roughness(MetallicRoughness {
+                base_color: Vec3::new(0.8, 0.2, 0.1),
+                metallic: 0.5,
+                roughness: 0.7,
+                ..MetallicRoughness::default()
+            })),
+        ]
+    }
+
+    /// A direction: mostly unit vectors on both sides, some grazing, some
+    /// not unit.
+    fn direction(rng: &mut Pcg32) -> Vec3 {
+        let z = 2.0 * rng.next_f32() - 1.0;
+        let phi = std::f32::consts::TAU * rng.next_f32();
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        let z = if rng.next_f32() < 0.05 { z * 1e-6 } else { z };
+        let scale = if rng.next_f32() < 0.1 { 3.0 } else { 1.0 };
+        Vec3::new(r * phi.cos(), r * phi.sin(), z) * scale
+    }
+
+    /// Bits of a sample, so that equal NaNs compare equal and 0 and -0 do
+    /// not.
+    fn sample_bits(s: Option<BsdfSample>) -> Option<([u32; 3], [u32; 3], u32, bool)> {
+        s.map(|s| {
+            (
+                s.wi.to_array().map(f32::to_bits),
+                s.weight.to_array().map(f32::to_bits),
+                s.pdf.to_bits(),
+                s.delta,
+            )
+        })
+    }
+
+    fn eval_bits((f, p): (Vec3, f32)) -> ([u32; 3], u32) {
+        (f.to_array().map(f32::to_bits), p.to_bits())
+    }
+
+    #[test]
+    fn the_avx2_mixture_code_gives_the_baseline_bits() {
+        let (baseline, detected) = (Isa::baseline(), Isa::detect());
+        let mut rng = Pcg32::new(7, 11);
+        let mut compared = 0;
+        for bsdf in bsdfs() {
+            for _ in 0..4000 {
+                let (Some(wo), Some(wi)) = (LocalDir::new(direction(&mut rng)), LocalDir::new(direction(&mut rng)))
+                else {
+                    continue;
+                };
+                let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+                let reference = sample_bits(Compiled.sample(&bsdf, wo, u_lobe, u));
+                assert_eq!(sample_bits(baseline.sample(&bsdf, wo, u_lobe, u)), reference);
+                assert_eq!(
+                    sample_bits(detected.sample(&bsdf, wo, u_lobe, u)),
+                    reference,
+                    "{bsdf:?} {wo:?} {u_lobe} {u}"
+                );
+                assert_eq!(
+                    sample_bits(bsdf.sample_local_in(detected, wo, u_lobe, u)),
+                    sample_bits(bsdf.sample_local(wo, u_lobe, u))
+                );
+                let reference = eval_bits(Compiled.eval_pdf(&bsdf, wo, wi));
+                assert_eq!(eval_bits(baseline.eval_pdf(&bsdf, wo, wi)), reference);
+                assert_eq!(
+                    eval_bits(detected.eval_pdf(&bsdf, wo, wi)),
+                    reference,
+                    "{bsdf:?} {wo:?} {wi:?}"
+                );
+                assert_eq!(
+                    eval_bits(bsdf.eval_pdf_in(detected, wo, wi)),
+                    eval_bits(bsdf.eval_pdf(wo, wi))
+                );
+                compared += 1;
+            }
+        }
+        assert!(compared > 50_000, "{compared} pairs");
+    }
 }

@@ -153,7 +153,7 @@ pub struct LightSet {
     emitters: Vec<Emitter>,
     /// Emission maps the emitters refer to.
     maps: Vec<Arc<Texture>>,
-    lights: Vec<Light>,
+    lights: Vec<DeltaLight>,
     /// Per instance: index of its first emitter, or `NONE`.
     instance_first: Vec<u32>,
     /// Cumulative selection probabilities over emitters then lights; the last
@@ -307,7 +307,7 @@ impl LightSet {
         LightSet {
             emitters,
             maps,
-            lights: lights.to_vec(),
+            lights: lights.iter().map(DeltaLight::new).collect(),
             instance_first,
             cdf,
             prob,
@@ -323,7 +323,7 @@ impl LightSet {
     /// Memory held by the set (its vectors' contents), in bytes.
     pub fn bytes(&self) -> usize {
         self.emitters.len() * size_of::<Emitter>()
-            + self.lights.len() * size_of::<Light>()
+            + self.lights.len() * size_of::<DeltaLight>()
             + self.maps.len() * size_of::<Arc<Texture>>()
             + self.instance_first.len() * size_of::<u32>()
             + (self.cdf.len() + self.prob.len()) * size_of::<f32>()
@@ -520,19 +520,50 @@ impl LightSet {
 
     /// A point or directional light's sample, chosen with probability `p`.
     #[inline]
-    fn delta_sample(light: &Light, from: Vec3A, p: f32) -> Option<LightSample> {
-        let s = light.sample(from.into())?;
-        let wi = Vec3A::from(s.to_light);
+    fn delta_sample(light: &DeltaLight, from: Vec3A, p: f32) -> Option<LightSample> {
+        let (wi, distance, value) = match light {
+            DeltaLight::Directional(seen) => {
+                let (wi, value) = (*seen)?;
+                (wi, f32::INFINITY, value)
+            }
+            DeltaLight::Placed(light) => {
+                let s = light.sample(from.into())?;
+                (Vec3A::from(s.to_light), s.distance, s.intensity)
+            }
+        };
         Some(LightSample {
             wi,
-            distance: s.distance,
-            point: from + wi * s.distance.min(f32::MAX),
+            distance,
+            point: from + wi * distance.min(f32::MAX),
             normal: Vec3A::ZERO,
             magnitude: 0.0,
-            value: s.intensity,
+            value,
             pdf: p,
             delta: true,
         })
+    }
+}
+
+/// A point, spot or directional light as the set samples it.
+#[derive(Clone, Copy, Debug)]
+enum DeltaLight {
+    /// A directional light: what [`Light::sample`] gives at every point,
+    /// its unit direction towards the light and its intensity, worked out
+    /// once (the very numbers: the same normalisation of the same vector),
+    /// or `None` when the direction does not normalise.
+    Directional(Option<(Vec3A, Vec3)>),
+    /// A point or spot light, seen differently from every point.
+    Placed(Light),
+}
+
+impl DeltaLight {
+    fn new(light: &Light) -> DeltaLight {
+        match *light {
+            Light::Directional { .. } => {
+                DeltaLight::Directional(light.sample(Vec3::ZERO).map(|s| (Vec3A::from(s.to_light), s.intensity)))
+            }
+            _ => DeltaLight::Placed(*light),
+        }
     }
 }
 
@@ -606,6 +637,51 @@ mod tests {
         assert_eq!((e.n, e.area), (-Vec3A::Y, 2.0));
         assert_eq!(set.emitted(e, -Vec3::Y, None), Vec3::splat(2.0));
         assert_eq!(set.emitted(e, Vec3::Y, None), Vec3::ZERO, "one-sided");
+    }
+
+    #[test]
+    fn a_directional_light_worked_out_once_gives_lights_own_sample() {
+        // The set keeps a directional light's direction normalised once;
+        // its samples must be what `Light::sample` gives at each point.
+        let lights = [
+            Light::Directional {
+                to_light: Vec3::new(0.3, 2.0, -0.7),
+                intensity: Vec3::new(1.0, 0.5, 2.0),
+            },
+            Light::Directional {
+                to_light: Vec3::Y,
+                intensity: Vec3::ONE,
+            },
+            Light::Directional {
+                to_light: Vec3::ZERO,
+                intensity: Vec3::ONE,
+            },
+            Light::Directional {
+                to_light: Vec3::new(f32::NAN, 1.0, 0.0),
+                intensity: Vec3::ONE,
+            },
+            Light::Point {
+                position: Vec3::new(1.0, 2.0, 3.0),
+                intensity: Vec3::splat(4.0),
+            },
+        ];
+        let set = LightSet::new(&[], &[], &[], &lights, 1.0);
+        for (i, light) in lights.iter().enumerate() {
+            for from in [Vec3::ZERO, Vec3::new(-3.0, 0.25, 7.0), Vec3::splat(1e30)] {
+                let got = set.delta_light(i, Vec3A::from(from));
+                let want = light.sample(from).map(|s| {
+                    let wi = Vec3A::from(s.to_light);
+                    (
+                        wi,
+                        s.distance,
+                        Vec3A::from(from) + wi * s.distance.min(f32::MAX),
+                        s.intensity,
+                    )
+                });
+                let got = got.map(|s| (s.wi, s.distance, s.point, s.value));
+                assert_eq!(format!("{got:?}"), format!("{want:?}"), "light {i} from {from}");
+            }
+        }
     }
 
     #[test]

@@ -62,6 +62,7 @@
 use crate::aov::{AovRecorder, AovSample};
 use crate::flat::FlatBvh;
 use crate::interaction::SurfaceInteraction;
+use crate::isa::Isa;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::SceneHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A};
@@ -86,11 +87,21 @@ pub struct PathTracer<'a> {
     /// Per material, its BSDF when nothing varies over the surface (no
     /// texture): built once per render, not at every hit.
     plain_bsdfs: Vec<Option<Bsdf>>,
+    /// Where the BSDF mixtures' out-of-line code runs: the copy the
+    /// processor supports, or the one the caller names.
+    isa: Isa,
 }
 
 impl<'a> PathTracer<'a> {
     /// A path tracer for `scene` with the path length limit of `settings`.
     pub fn new(scene: &'a RenderScene, settings: &RenderSettings) -> Self {
+        Self::new_in(scene, settings, Isa::detect())
+    }
+
+    /// [`PathTracer::new`] whose BSDF mixtures run `isa`'s copy of their
+    /// code (the copy of the loop that calls them, so that the baseline
+    /// loop is baseline throughout).
+    pub(crate) fn new_in(scene: &'a RenderScene, settings: &RenderSettings, isa: Isa) -> Self {
         let plain_bsdfs = scene
             .materials
             .iter()
@@ -108,6 +119,7 @@ impl<'a> PathTracer<'a> {
             },
             free_delta_bounces: settings.free_delta_bounces,
             plain_bsdfs,
+            isa,
         }
     }
 
@@ -278,7 +290,7 @@ impl<'a> PathTracer<'a> {
                     if let Some(ls) = lights.delta_light(i, p)
                         && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
                     {
-                        let f = bsdf.eval_pdf(wo_unit, wi).0;
+                        let f = bsdf.eval_pdf_in(self.isa, wo_unit, wi).0;
                         if f != Vec3::ZERO {
                             stats.shadow += 1;
                             let origin = hit.offset_a(p, if ls.wi.dot(ng) >= 0.0 { ng } else { -ng });
@@ -297,7 +309,7 @@ impl<'a> PathTracer<'a> {
                 && let Some(ls) = lights.sample(p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
                 && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
             {
-                let (f, bsdf_pdf) = bsdf.eval_pdf(wo_unit, wi);
+                let (f, bsdf_pdf) = bsdf.eval_pdf_in(self.isa, wo_unit, wi);
                 if f != Vec3::ZERO {
                     stats.shadow += 1;
                     let out = ls.wi.dot(ng) >= 0.0;
@@ -325,7 +337,8 @@ impl<'a> PathTracer<'a> {
 
             // BSDF sampling: the next segment.
             let u_lobe = rng.next_f32();
-            let Some(bs) = bsdf.sample_local(wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32())) else {
+            let Some(bs) = bsdf.sample_local_in(self.isa, wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32()))
+            else {
                 break;
             };
             throughput *= Vec3A::from(bs.weight);

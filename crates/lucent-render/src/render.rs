@@ -264,10 +264,16 @@ pub(crate) struct PixelSampler<'a> {
 impl<'a> PixelSampler<'a> {
     /// A sampler for a `width` x `height` film.
     pub(crate) fn new(scene: &'a RenderScene, settings: &RenderSettings, width: u32, height: u32) -> Self {
+        Self::new_in(Isa::detect(), scene, settings, width, height)
+    }
+
+    /// [`PixelSampler::new`] for the copy of the loop `isa` names: the
+    /// path tracer's BSDF mixtures run that copy of their code too.
+    pub(crate) fn new_in(isa: Isa, scene: &'a RenderScene, settings: &RenderSettings, width: u32, height: u32) -> Self {
         let camera = PinholeCamera::new(&scene.camera, &scene.render_rig(), width, height);
         let tracer = match settings.integrator {
             Integrator::Whitted => Tracer::Whitted(Whitted::new(scene, settings)),
-            Integrator::Path => Tracer::Path(PathTracer::new(scene, settings)),
+            Integrator::Path => Tracer::Path(PathTracer::new_in(scene, settings, isa)),
         };
         Self {
             camera,
@@ -366,7 +372,7 @@ fn trace_rows(
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> RayStats {
-    let sampler = PixelSampler::new(scene, settings, film.width(), film.height());
+    let sampler = PixelSampler::new_in(isa, scene, settings, film.width(), film.height());
     let width = film.width() as usize;
     let rows_done = AtomicUsize::new(0);
     film.sum
@@ -440,7 +446,7 @@ fn trace_rows_aov(
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> (RayStats, bool) {
-    let sampler = PixelSampler::new(scene, settings, film.width(), film.height());
+    let sampler = PixelSampler::new_in(isa, scene, settings, film.width(), film.height());
     if !sampler.records_aovs() || (aovs.width(), aovs.height()) != (film.width(), film.height()) {
         return (trace_rows(isa, scene, settings, film, samples, progress, cancel), false);
     }

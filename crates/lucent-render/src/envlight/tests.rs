@@ -292,3 +292,34 @@ fn a_one_texel_map_has_the_density_its_cell_gives_everywhere() {
     assert!(light(gradient(), 0.0).uniform_pdf.is_none());
     assert!(light(gradient(), 0.0).constant.is_none());
 }
+
+#[test]
+fn kept_row_cosines_and_constant_radiance_are_the_computed_ones() {
+    // `sample` reads each row's cosines from a table and the constant
+    // background's radiance from `constant`: they must be the numbers it
+    // would compute.
+    let hdr = light(
+        map(16, 9, |x, y| Vec3::new(x as f32 + 0.5, y as f32 * 0.25 + 0.1, 1.0)),
+        30.0,
+    );
+    assert_eq!(hdr.row_cos.len(), hdr.rows as usize);
+    for (r, &[c0, c1]) in hdr.row_cos.iter().enumerate() {
+        let (t0, t1) = row_thetas(r as u32, hdr.rows);
+        assert_eq!(
+            (c0.to_bits(), c1.to_bits()),
+            (t0.cos().to_bits(), t1.cos().to_bits()),
+            "row {r}"
+        );
+    }
+    let sky = light(map(1, 1, |_, _| Vec3::new(0.02, 0.02, 0.03)), 10.0);
+    assert_eq!(sky.uniform_corners, sky.corners(0, 0));
+    let mut rng = Pcg32::new(1, 2);
+    for _ in 0..1000 {
+        let Some(s) = sky.sample(Vec2::new(rng.next_f32(), rng.next_f32())) else {
+            continue;
+        };
+        let uv = Vec2::new(rng.next_f32(), rng.next_f32());
+        assert_eq!(s.radiance, sky.map.lookup(uv) * sky.intensity);
+        assert_eq!(s.radiance, sky.eval(s.wi));
+    }
+}

@@ -6,7 +6,7 @@
 //! its weight: `eval` is `f * |cos theta_i|` for a unit reflectance, `pdf`
 //! the solid-angle density of the lobe's own sampling routine.
 
-use crate::bsdf::Frame;
+use crate::bsdf::{Frame, unit_or_zero};
 use lucent_geom::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
@@ -136,7 +136,7 @@ fn reflection_half_vector(wo: Vec3, wi: Vec3) -> Option<(Vec3, Vec3, Vec3)> {
     }
     let below = wo.z < 0.0;
     let (wo, wi) = (flip_if(below, wo), flip_if(below, wi));
-    let h = (wo + wi).normalize_or_zero();
+    let h = unit_or_zero(wo + wi);
     (h.z > 0.0).then_some((wo, wi, h))
 }
 
@@ -204,13 +204,13 @@ pub(super) fn ggx_eval_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> (f32, f32) {
 pub(super) fn ggx_sample(wo: Vec3, u: Vec2, alpha: f32) -> Option<Vec3> {
     let below = wo.z < 0.0;
     let wo = flip_if(below, wo);
-    let wo_std = Vec3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize_or_zero();
+    let wo_std = unit_or_zero(Vec3::new(alpha * wo.x, alpha * wo.y, wo.z));
     let phi = TAU * u.x;
     let z = (1.0 - u.y) * (1.0 + wo_std.z) - wo_std.z;
     let sin_t = (1.0 - z * z).clamp(0.0, 1.0).sqrt();
     let cap = Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), z);
     let h_std = cap + wo_std;
-    let h = Vec3::new(alpha * h_std.x, alpha * h_std.y, h_std.z).normalize_or_zero();
+    let h = unit_or_zero(Vec3::new(alpha * h_std.x, alpha * h_std.y, h_std.z));
     let wi = 2.0 * wo.dot(h) * h - wo;
     (h.z > 0.0 && wi.z > 0.0).then(|| flip_if(below, wi))
 }

@@ -228,6 +228,21 @@ fn unit(v: Vec3) -> Option<Vec3> {
     (u.z != 0.0).then_some(u)
 }
 
+/// `v` normalised as glam's `normalize_or_zero` gives it, bit for bit: the
+/// same dot product, root, reciprocal and product, kept when the
+/// reciprocal is finite and positive, which `unit`'s two comparisons on
+/// the squared length decide without the bit tests the compiler makes of
+/// `is_finite` (zero otherwise).
+#[inline]
+pub(crate) fn unit_or_zero(v: Vec3) -> Vec3 {
+    let l2 = v.dot(v);
+    if l2 > 0.0 && l2 <= f32::MAX {
+        v * (1.0 / l2.sqrt())
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// A direction in a [`Frame`]'s coordinates as every BSDF call takes it:
 /// unit length, off the surface plane (`z != 0`).
 ///
@@ -260,6 +275,37 @@ impl LocalDir {
     #[inline]
     pub fn get(self) -> Vec3 {
         self.0
+    }
+}
+
+/// Where a caller's BSDF calls find the general mixture's code (every
+/// mixture but the plain Lambertian one, which [`Bsdf::sample_local_in`]
+/// and [`Bsdf::eval_pdf_in`] handle inline): [`Compiled`], the out-of-line
+/// functions compiled with this crate, or a copy the caller compiled from
+/// [`Bsdf::sample_mixture_inline`] and [`Bsdf::eval_pdf_mixture`] (for
+/// other target features). Every implementation must give the numbers of
+/// those two functions, bit for bit.
+pub trait MixtureCode: Copy {
+    /// [`Bsdf::sample_mixture_inline`]'s sample.
+    fn sample(self, bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample>;
+    /// [`Bsdf::eval_pdf_mixture`]'s value and density.
+    fn eval_pdf(self, bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32);
+}
+
+/// The general mixture's code as this crate compiles it: one out-of-line
+/// function each for sampling and for evaluation.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Compiled;
+
+impl MixtureCode for Compiled {
+    #[inline(always)]
+    fn sample(self, bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        bsdf.sample_mixture(wo.0, u_lobe, u)
+    }
+
+    #[inline(always)]
+    fn eval_pdf(self, bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        bsdf.eval_pdf_unit(wo.0, wi.0)
     }
 }
 
@@ -536,10 +582,18 @@ impl Bsdf {
     /// normalised: the same two numbers, computed once.
     #[inline]
     pub fn eval_pdf(&self, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        self.eval_pdf_in(Compiled, wo, wi)
+    }
+
+    /// [`Bsdf::eval_pdf`] with the general mixture reached through `code`:
+    /// the same two numbers. Always inlined, like the plain Lambertian case
+    /// it handles itself.
+    #[inline(always)]
+    pub fn eval_pdf_in<C: MixtureCode>(&self, code: C, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
         if self.only_diffuse() {
             return self.lambert_eval_pdf(wo.0, wi.0);
         }
-        self.eval_pdf_unit(wo.0, wi.0)
+        code.eval_pdf(self, wo, wi)
     }
 
     /// Whether the only lobe `sample` ever picks is a plain (uncoupled)
@@ -585,7 +639,7 @@ impl Bsdf {
                 f += self.conductor * g * self.conductor_fresnel(lobes::reflection_cos_half(wo, wi));
             }
         }
-        if f.is_finite() { f } else { Vec3::ZERO }
+        if all_finite(f) { f } else { Vec3::ZERO }
     }
 
     /// Solid-angle density with which [`sample`](Bsdf::sample) returns
@@ -618,11 +672,28 @@ impl Bsdf {
         if p.is_finite() { p } else { 0.0 }
     }
 
+    /// `eval_unit` and `pdf_unit` in one pass, out of line (see
+    /// [`Bsdf::eval_pdf_mixture`]).
+    fn eval_pdf_unit(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.eval_pdf_general(wo, wi)
+    }
+
+    /// [`Bsdf::eval_pdf`] of any mixture, without its plain Lambertian
+    /// shortcut (whose numbers it makes too): the body of the out-of-line
+    /// code that [`Compiled`] calls, always inlined, so that a caller can
+    /// compile a copy of its own (lucent-render's AVX2 copy of the render
+    /// loop does, bit for bit the same).
+    #[inline(always)]
+    pub fn eval_pdf_mixture(&self, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
+        self.eval_pdf_general(wo.0, wi.0)
+    }
+
     /// `eval_unit` and `pdf_unit` in one pass: each number is made by the
     /// very operations the two make apart, but what both need (the
     /// Lambertian term, the Phong power, the GGX half vector, `Lambda(wo)`
     /// and `D(h)`) is computed once.
-    fn eval_pdf_unit(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    #[inline(always)]
+    fn eval_pdf_general(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let mut f = Vec3::ZERO;
         let mut p = 0.0;
         let pd = self.prob(DIFFUSE);
@@ -650,7 +721,7 @@ impl Bsdf {
             p += pc * q;
         }
         (
-            if f.is_finite() { f } else { Vec3::ZERO },
+            if all_finite(f) { f } else { Vec3::ZERO },
             if p.is_finite() { p } else { 0.0 },
         )
     }
@@ -669,6 +740,14 @@ impl Bsdf {
     /// other mixtures are a call away.
     #[inline(always)]
     pub fn sample_local(&self, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_local_in(Compiled, wo, u_lobe, u)
+    }
+
+    /// [`Bsdf::sample_local`] with the general mixture reached through
+    /// `code`: the same sample.
+    #[inline(always)]
+    pub fn sample_local_in<C: MixtureCode>(&self, code: C, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let wo_dir = wo;
         let wo = wo.0;
         if self.only_diffuse() {
             // The lobe choice of the general code below: the first
@@ -696,13 +775,28 @@ impl Bsdf {
                 delta: false,
             });
         }
-        self.sample_mixture(wo, u_lobe, u)
+        code.sample(self, wo_dir, u_lobe, u)
+    }
+
+    /// The general `sample`, out of line (see [`Bsdf::sample_mixture_inline`]).
+    #[inline(never)]
+    fn sample_mixture(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_general(wo, u_lobe, u)
+    }
+
+    /// [`Bsdf::sample_local`] of any mixture, without its plain Lambertian
+    /// shortcut (whose sample it makes too): the body of the out-of-line
+    /// code that [`Compiled`] calls, always inlined, so that a caller can
+    /// compile a copy of its own (see [`Bsdf::eval_pdf_mixture`]).
+    #[inline(always)]
+    pub fn sample_mixture_inline(&self, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_general(wo.0, u_lobe, u)
     }
 
     /// The general `sample`: a lobe picked by the selection probabilities,
     /// a direction from it, the mixture's density and weight.
-    #[inline(never)]
-    fn sample_mixture(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    #[inline(always)]
+    fn sample_general(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let k = self.cdf.iter().position(|&c| u_lobe < c)?;
         let p = self.prob(k);
         let lo = self.cdf[k] - p;
@@ -723,7 +817,7 @@ impl Bsdf {
             _ => return self.sample_dielectric(wo, p, u_rest),
         };
         let wi = unit(wi)?;
-        let (f, pdf) = self.eval_pdf_unit(wo, wi);
+        let (f, pdf) = self.eval_pdf_general(wo, wi);
         if pdf <= 0.0 {
             return None;
         }
@@ -736,7 +830,9 @@ impl Bsdf {
     }
 
     /// Reflection with probability `R` (Fresnel), refraction otherwise;
-    /// `p` is the probability that the dielectric lobe was chosen.
+    /// `p` is the probability that the dielectric lobe was chosen. Always
+    /// inlined: part of the mixture's sample, in each copy of it.
+    #[inline(always)]
     fn sample_dielectric(&self, wo: Vec3, p: f32, u: f32) -> Option<BsdfSample> {
         let outside = wo.z > 0.0;
         // Relative index of the side `wi` refracts into over `wo`'s side.
@@ -751,7 +847,7 @@ impl Bsdf {
             });
         }
         let n = if outside { Vec3::Z } else { Vec3::NEG_Z };
-        let wi = refract(-wo, n, 1.0 / eta_ti)?.normalize_or_zero();
+        let wi = unit_or_zero(refract(-wo, n, 1.0 / eta_ti)?);
         if wi.z * wo.z >= 0.0 {
             return None;
         }
@@ -765,10 +861,18 @@ impl Bsdf {
     }
 }
 
-/// The sample, if every number in it is finite.
+/// The sample, if every number in it is finite and its density positive.
 #[inline]
 fn finite(s: BsdfSample) -> Option<BsdfSample> {
-    (s.wi.is_finite() && s.weight.is_finite() && s.pdf.is_finite() && s.pdf > 0.0).then_some(s)
+    (all_finite(s.wi) & all_finite(s.weight) & (s.pdf > 0.0) & (s.pdf <= f32::MAX)).then_some(s)
+}
+
+/// `v.is_finite()`, as one four-wide comparison of the magnitudes with
+/// `f32::MAX` (a number is finite exactly when its magnitude is at most
+/// that; NaN compares false) instead of a bit test per component.
+#[inline]
+fn all_finite(v: Vec3) -> bool {
+    Vec3A::from(v).abs().cmple(Vec3A::splat(f32::MAX)).all()
 }
 
 /// The cumulative lobe-selection probabilities of weights `w`: all zero

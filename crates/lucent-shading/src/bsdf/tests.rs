@@ -572,3 +572,54 @@ fn frame_changes_of_coordinates_give_the_dot_products_bits() {
         assert_eq!(bits(f.to_world(w)), bits(t * w.x + b * w.y + n * w.z));
     }
 }
+
+#[test]
+fn unit_or_zero_is_glams_normalize_or_zero_bit_for_bit() {
+    let tiny = f32::from_bits(1);
+    let mut cases = vec![
+        Vec3::ZERO,
+        Vec3::new(-0.0, 0.0, -0.0),
+        Vec3::new(tiny, 0.0, 0.0),
+        Vec3::new(tiny, tiny, tiny),
+        Vec3::new(1e-20, -3e-20, 2e-20),
+        Vec3::new(f32::MAX, 0.0, 0.0),
+        Vec3::new(1.8e19, 1.8e19, 0.0),
+        Vec3::new(1e19, 1e19, 1e19),
+        Vec3::new(f32::INFINITY, 0.0, 0.0),
+        Vec3::new(f32::NAN, 1.0, 0.0),
+        Vec3::new(1.0, f32::NEG_INFINITY, 2.0),
+    ];
+    let mut rng = lucent_geom::Pcg32::new(3, 5);
+    for _ in 0..20_000 {
+        let e = (rng.next_f32() * 80.0 - 40.0).exp2();
+        cases.push(Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5) * e);
+    }
+    for v in cases {
+        let (a, b) = (super::unit_or_zero(v), v.normalize_or_zero());
+        assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits), "{v:?}");
+    }
+}
+
+#[test]
+fn all_finite_is_vec3_is_finite() {
+    let specials = [
+        0.0,
+        -0.0,
+        1.0,
+        f32::from_bits(1),
+        f32::MAX,
+        -f32::MAX,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+        -f32::NAN,
+    ];
+    for &x in &specials {
+        for &y in &specials {
+            for &z in &specials {
+                let v = Vec3::new(x, y, z);
+                assert_eq!(super::all_finite(v), v.is_finite(), "{v:?}");
+            }
+        }
+    }
+}
