@@ -55,9 +55,13 @@ impl Tally for TraversalCounts {
 }
 
 /// Eight triangles of a leaf in SoA form with their ids (`u32::MAX` marks
-/// an unused lane, whose vertices are NaN).
+/// an unused lane, whose vertices are NaN): 320 bytes, aligned to whole
+/// cache lines, so a pack spans exactly five (its nine rows and ids). At
+/// an alignment of 32 the pack array's start was left to the allocator,
+/// which put it half a line off in some runs: every pack then spanned six
+/// lines, and a hit's ids sat in a line of their own.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(32))]
+#[repr(C, align(64))]
 pub(crate) struct Pack {
     pub(crate) v: TrianglePack8,
     pub(crate) prim: [u32; LANES],
