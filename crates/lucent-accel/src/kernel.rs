@@ -42,16 +42,14 @@
 
 use crate::mesh_bvh::{LeafTest, PortableLeaf};
 use crate::wide::Query;
-use crate::wide::{BoxTest, FAR_SCALE, NEAR_SCALE, SlabRay, W, WideNode};
-use lucent_geom::{PackHits, Ray, TriangleHit, TrianglePack8, TriangleTest, edge_f64};
+use crate::wide::{BoxTest, SlabRay, W, WideNode};
+use lucent_geom::{PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, edge_f64};
 use std::arch::x86_64::{
-    __m128, __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_add_ps, _mm_blend_ps,
-    _mm_cmplt_ps, _mm_cmpunord_ps, _mm_cvtsd_f64, _mm_div_ps, _mm_loadl_epi64, _mm_loadu_ps, _mm_loadu_si128,
-    _mm_movemask_ps, _mm_mul_ps, _mm_permute_ps, _mm_permutevar_ps, _mm_set1_ps, _mm_setr_ps, _mm_setzero_ps,
-    _mm_sub_ps, _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256, _mm256_andnot_ps, _mm256_blendv_ps,
-    _mm256_broadcastss_ps, _mm256_castpd256_pd128, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32,
-    _mm256_cvtepu8_epi32, _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps, _mm256_loadu_si256,
-    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
+    __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_cvtsd_f64, _mm_loadl_epi64,
+    _mm_setr_ps, _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256, _mm256_andnot_ps, _mm256_blendv_ps,
+    _mm256_castpd256_pd128, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32, _mm256_cvtepu8_epi32,
+    _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps, _mm256_loadu_si256, _mm256_max_ps,
+    _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
     _mm256_permute2f128_ps, _mm256_permute4x64_pd, _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_set1_ps,
     _mm256_setr_epi32, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_storeu_si256, _mm256_sub_pd, _mm256_sub_ps,
 };
@@ -148,39 +146,6 @@ impl BoxTest for Avx2 {
         }
     }
 
-    /// [`traceable`] and [`SlabRay::new`] then [`BoxTest::prepare_boxes`],
-    /// in four-lane registers: the finiteness test's `x - x` per component,
-    /// the reciprocal and its two scalings lane by lane (each rounds as the
-    /// scalar operation does), the near sides from the reciprocal's signs
-    /// and the row offsets from a table, so the constants are
-    /// `prepare_boxes`' bit for bit (a test checks it).
-    #[inline(always)]
-    fn prepare_ray(self, ray: &Ray) -> Option<Slab8> {
-        // SAFETY: `self` proves AVX2 (and with it SSE). (No closures here: a
-        // closure would not be compiled for AVX, and the intrinsics in it
-        // would not inline.)
-        unsafe {
-            let [o4, d4] = load_ray(ray);
-            // 0 in every lane exactly when the six components are finite
-            // (else a NaN lane; lane 3 repeats a component): `traceable`'s
-            // test.
-            let zero = _mm_add_ps(_mm_sub_ps(o4, o4), _mm_sub_ps(d4, d4));
-            if _mm_movemask_ps(_mm_cmpunord_ps(zero, zero)) != 0 {
-                return None;
-            }
-            let inv = _mm_div_ps(_mm_set1_ps(1.0), d4);
-            // `i < 0.0` per axis, as `SlabRay::new` sets `near`.
-            let near = (_mm_movemask_ps(_mm_cmplt_ps(inv, _mm_setzero_ps())) & 7) as usize;
-            Some(Slab8 {
-                near_at: NEAR_AT[near],
-                far_at: FAR_AT[near],
-                origin: splat3(o4),
-                inv_near: splat3(_mm_mul_ps(inv, _mm_set1_ps(NEAR_SCALE))),
-                inv_far: splat3(_mm_mul_ps(inv, _mm_set1_ps(FAR_SCALE))),
-            })
-        }
-    }
-
     #[inline(always)]
     fn test(self, slab: &Slab8, node: &WideNode, t_bound: f32) -> ([f32; W], u32) {
         let rows = node.bounds.as_ptr().cast::<u8>();
@@ -250,69 +215,6 @@ impl BoxTest for Avx2 {
             _mm256_storeu_si256(dst.as_mut_ptr().cast(), _mm256_permutevar8x32_epi32(entries, order));
         }
         *sp += lanes.count_ones() as usize;
-    }
-}
-
-/// [`Slab8::near_at`] for each mask of the axes whose near side is
-/// `bounds[1]` (bit `axis` set where the direction is negative).
-static NEAR_AT: [[usize; 3]; 8] = row_offsets(false);
-/// [`Slab8::far_at`], likewise.
-static FAR_AT: [[usize; 3]; 8] = row_offsets(true);
-
-/// Byte offsets of `bounds[side][axis]` for each mask of [`NEAR_AT`]: the
-/// near side (the mask's bit), or the other when `far`.
-const fn row_offsets(far: bool) -> [[usize; 3]; 8] {
-    let mut table = [[0usize; 3]; 8];
-    let mut mask = 0;
-    while mask < 8 {
-        let mut axis = 0;
-        while axis < 3 {
-            let near = (mask >> axis) & 1;
-            let side = if far { 1 - near } else { near };
-            table[mask][axis] = (side * 3 + axis) * ROW;
-            axis += 1;
-        }
-        mask += 1;
-    }
-    table
-}
-
-// `load_ray` reads a ray as six consecutive floats.
-const _: () =
-    assert!(std::mem::offset_of!(Ray, origin) == 0 && std::mem::offset_of!(Ray, dir) == 12 && size_of::<Ray>() == 24);
-
-/// A ray's origin and direction in four-lane registers, `(x, y, z, _)`
-/// each, in two loads: lane 3 holds another component of the ray (the
-/// direction's x, the origin's z), finite exactly when that one is.
-///
-/// # Safety
-/// Needs AVX (an [`Avx2`] proves it).
-#[inline(always)]
-unsafe fn load_ray(ray: &Ray) -> [__m128; 2] {
-    let at = std::ptr::from_ref(ray).cast::<f32>();
-    // SAFETY: the caller has AVX; a `Ray` is six floats, origin then
-    // direction (the assertion above; `Vec3` is three `f32`s, `repr(C)`),
-    // so each load reads four of them: 0..4 and 2..6.
-    unsafe {
-        let o = _mm_loadu_ps(at);
-        let d = _mm_permute_ps::<0b00_11_10_01>(_mm_loadu_ps(at.add(2)));
-        [o, d]
-    }
-}
-
-/// Lanes 0, 1 and 2 of `v`, each in every lane of a 256-bit register.
-///
-/// # Safety
-/// Needs AVX2 (an [`Avx2`] proves it).
-#[inline(always)]
-unsafe fn splat3(v: __m128) -> [__m256; 3] {
-    // SAFETY: the caller has AVX2.
-    unsafe {
-        [
-            _mm256_broadcastss_ps(v),
-            _mm256_broadcastss_ps(_mm_permute_ps::<0b01_01_01_01>(v)),
-            _mm256_broadcastss_ps(_mm_permute_ps::<0b10_10_10_10>(v)),
-        ]
     }
 }
 
@@ -386,43 +288,6 @@ pub(crate) struct Ray8 {
     s: [__m256; 3],
 }
 
-/// [`lucent_geom::PreparedRay::new`]'s axes `[kx, ky, kz, kz]` for each case `2 * kz +
-/// down` (`down`: the direction's `kz` component is negative): `kx` and `ky`
-/// the next two axes after `kz`, swapped when the ray goes down it.
-static AXES: [[i32; 4]; 6] = [
-    [1, 2, 0, 0],
-    [2, 1, 0, 0],
-    [2, 0, 1, 1],
-    [0, 2, 1, 1],
-    [0, 1, 2, 2],
-    [1, 0, 2, 2],
-];
-
-/// [`Ray8::k_at`] for each case of [`AXES`].
-static K_AT: [[usize; 3]; 6] = {
-    let mut table = [[0usize; 3]; 6];
-    let mut case = 0;
-    while case < 6 {
-        let mut i = 0;
-        while i < 3 {
-            table[case][i] = AXES[case][i] as usize * size_of::<[f32; W]>();
-            i += 1;
-        }
-        case += 1;
-    }
-    table
-};
-
-/// `v`'s lane 2 in every lane.
-///
-/// # Safety
-/// Needs AVX (an [`Avx2`] proves it).
-#[inline(always)]
-unsafe fn lane2(v: __m128) -> __m128 {
-    // SAFETY: the caller has AVX.
-    unsafe { _mm_permute_ps::<0b10_10_10_10>(v) }
-}
-
 /// The eight lanes of a pack test, in registers.
 #[derive(Clone, Copy)]
 struct Hits8 {
@@ -440,44 +305,23 @@ impl LeafTest for Avx2 {
     const SIMD: bool = true;
     type Ray = Ray8;
 
-    /// [`lucent_geom::PreparedRay::new`]'s axes and shear, made in registers: the
-    /// largest component by the same comparisons, then the permutation
-    /// from a table ([`AXES`]) and the three divisions as one four-lane
-    /// division (each lane rounds as the scalar division does), so the
-    /// constants are the portable ones bit for bit (a test checks it).
     #[inline(always)]
     fn prepare(self, ray: &Ray, _test: TriangleTest) -> Ray8 {
-        let a = ray.dir.abs();
-        let d = ray.dir.to_array();
-        // As `PreparedRay::new`: NaN compares false and leaves z.
-        let x_largest = a.x > a.y && a.x > a.z;
-        let kz = if x_largest { 0 } else { 2 - usize::from(a.y > a.z) };
-        let case = (2 * kz + usize::from(d[kz % 3] < 0.0)) % AXES.len();
-        // SAFETY: `self` proves AVX2 (and with it SSE4.1); the load reads
-        // exactly the four lanes of one table row. (No closures here: a
-        // closure would not be compiled for AVX, and the intrinsics in it
-        // would not inline.)
+        let prepared = PreparedRay::new(ray, TriangleTest::Watertight);
+        let k = prepared.axes();
+        let o = ray.origin.to_array();
+        let [sx, sy, sz] = prepared.shear();
+        // SAFETY: `self` proves AVX. (No closures here: a closure would not
+        // be compiled for AVX, and the intrinsics in it would not inline.)
         unsafe {
-            let idx = _mm_loadu_si128(AXES[case].as_ptr().cast());
-            let [o4, d4] = load_ray(ray);
-            // (d[kx], d[ky], d[kz], d[kz]) and the origin likewise.
-            let dk = _mm_permutevar_ps(d4, idx);
-            let ok = _mm_permutevar_ps(o4, idx);
-            let dz = _mm_permute_ps::<0b10_10_10_10>(dk);
-            // (d[kx] / dz, d[ky] / dz, 1 / dz, _).
-            let s = _mm_div_ps(_mm_blend_ps::<0b0100>(dk, _mm_set1_ps(1.0)), dz);
             Ray8 {
-                k_at: K_AT[case],
+                k_at: k.map(|k| (k % 3) * size_of::<[f32; W]>()),
                 o: [
-                    _mm256_broadcastss_ps(ok),
-                    _mm256_broadcastss_ps(_mm_permute_ps::<0b01_01_01_01>(ok)),
-                    _mm256_broadcastss_ps(lane2(ok)),
+                    _mm256_set1_ps(o[k[0] % 3]),
+                    _mm256_set1_ps(o[k[1] % 3]),
+                    _mm256_set1_ps(o[k[2] % 3]),
                 ],
-                s: [
-                    _mm256_broadcastss_ps(s),
-                    _mm256_broadcastss_ps(_mm_permute_ps::<0b01_01_01_01>(s)),
-                    _mm256_broadcastss_ps(lane2(s)),
-                ],
+                s: [_mm256_set1_ps(sx), _mm256_set1_ps(sy), _mm256_set1_ps(sz)],
             }
         }
     }
@@ -537,10 +381,8 @@ impl LeafTest for Avx2 {
                 _mm256_mul_pd(_mm256_permute4x64_pd::<YZX>(e1), _mm256_permute4x64_pd::<ZXY>(e2)),
                 _mm256_mul_pd(_mm256_permute4x64_pd::<YZX>(e2), _mm256_permute4x64_pd::<ZXY>(e1)),
             );
-            // Lane 3 holds another of the ray's components; it meets only
-            // lane 3 of the products, which `sum3` leaves out.
-            let [o4, d4] = load_ray(ray);
-            let (o, d) = (_mm256_cvtps_pd(o4), _mm256_cvtps_pd(d4));
+            let o = widen(ray.origin.x, ray.origin.y, ray.origin.z);
+            let d = widen(ray.dir.x, ray.dir.y, ray.dir.z);
             let num = sum3(_mm256_mul_pd(n, _mm256_sub_pd(a, o)));
             let den = sum3(_mm256_mul_pd(n, d));
             let t = (num / den) as f32;
@@ -566,7 +408,7 @@ impl LeafTest for Avx2 {
 
 impl Avx2 {
     /// The watertight test of `ray` against the eight triangles of `pack`:
-    /// [`lucent_geom::PreparedRay::intersect_lanes`] in AVX2, bit for bit, leaving early
+    /// [`PreparedRay::intersect_lanes`] in AVX2, bit for bit, leaving early
     /// (mask 0, the other fields zero) when no lane's edge functions allow a
     /// hit.
     #[inline(always)]
@@ -745,8 +587,8 @@ fn edge_fallback(on_edge: u32, xy: [__m256; 6], uvw: [__m256; 3]) -> (__m256, __
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wide::{Portable, traceable};
-    use lucent_geom::{Pcg32, PreparedRay, Vec3};
+    use crate::wide::Portable;
+    use lucent_geom::{Pcg32, Vec3};
 
     /// The AVX2 pack test equals the portable eight-lane test bit for bit
     /// (mask, and distance and barycentrics of every lane hit), and so does
@@ -825,55 +667,6 @@ mod tests {
             hits > 10_000 && edges > 100 && early > 1000,
             "too few cases: {hits}, {edges}, {early}"
         );
-    }
-
-    /// The AVX2 preparation of the pack test's ray gives the portable
-    /// [`PreparedRay::new`]'s axes, origin components and shear constants,
-    /// bit for bit: random directions, ties between components, zero,
-    /// negative zero, tiny, huge, infinite and NaN components.
-    #[test]
-    fn pack_ray_preparation_matches_the_portable_one_bit_for_bit() {
-        let Some(avx2) = Avx2::detect() else {
-            eprintln!("no AVX2 here: nothing to compare");
-            return;
-        };
-        let mut rng = Pcg32::new(29, 4);
-        let specials = [0.0, -0.0, 1.0, -1.0, 0.5, -0.5, 1e-30, -1e30, f32::INFINITY, f32::NAN];
-        let mut cases = [0usize; 6];
-        for i in 0..20_000 {
-            let mut f = |special: bool| {
-                if special && rng.next_f32() < 0.3 {
-                    specials[(rng.next_f32() * specials.len() as f32) as usize % specials.len()]
-                } else {
-                    (rng.next_f32() - 0.5) * 8.0
-                }
-            };
-            let special = i % 2 == 0;
-            let ray = Ray::new(
-                Vec3::new(f(false), f(false), f(false)),
-                Vec3::new(f(special), f(special), f(special)),
-            );
-            let portable = PreparedRay::new(&ray, TriangleTest::Watertight);
-            let vector = avx2.prepare(&ray, TriangleTest::Watertight);
-            let k = portable.axes();
-            let o = ray.origin.to_array();
-            assert_eq!(vector.k_at, k.map(|k| k * size_of::<[f32; W]>()), "{ray:?}");
-            for axis in 0..3 {
-                // SAFETY: the test found AVX2.
-                let (vo, vs) = unsafe { (store(vector.o[axis]), store(vector.s[axis])) };
-                assert!(
-                    vo.iter().all(|x| x.to_bits() == o[k[axis]].to_bits()),
-                    "origin {axis}: {ray:?}"
-                );
-                assert!(
-                    vs.iter().all(|x| x.to_bits() == portable.shear()[axis].to_bits()),
-                    "shear {axis}: {ray:?}"
-                );
-            }
-            let down = ray.dir[k[2]] < 0.0;
-            cases[2 * k[2] + usize::from(down)] += 1;
-        }
-        assert!(cases.iter().all(|&n| n > 500), "{cases:?}");
     }
 
     trait EqZero {
@@ -968,7 +761,7 @@ mod tests {
                 (rng.next_f32() - 0.5) * 8.0
             }
         };
-        let (mut checked, mut traced) = (0, 0);
+        let mut checked = 0;
         for i in 0..20_000 {
             let special = i % 2 == 0;
             let mut node = WideNode {
@@ -993,26 +786,7 @@ mod tests {
             if i % 7 == 0 {
                 d[i % 3] = 0.0;
             }
-            let ray = Ray::new(o, d);
-            let slab = SlabRay::new(&ray);
-            match avx2.prepare_ray(&ray) {
-                None => assert!(!traceable(&ray) && Portable.prepare_ray(&ray).is_none(), "{ray:?}"),
-                Some(v) => {
-                    assert!(traceable(&ray), "{ray:?}");
-                    let p = avx2.prepare_boxes(&slab);
-                    assert_eq!((v.near_at, v.far_at), (p.near_at, p.far_at), "{ray:?}");
-                    for (a, b) in [v.origin, v.inv_near, v.inv_far]
-                        .iter()
-                        .flatten()
-                        .zip([p.origin, p.inv_near, p.inv_far].iter().flatten())
-                    {
-                        // SAFETY: the test found AVX2.
-                        let (a, b) = unsafe { (store(*a), store(*b)) };
-                        assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{ray:?}");
-                    }
-                    traced += 1;
-                }
-            }
+            let slab = SlabRay::new(&Ray::new(o, d));
             let t_bound = [f32::INFINITY, 3.0, 0.0, f32::NAN][i % 4];
             let (pt, pm) = Portable.test(&Portable.prepare_boxes(&slab), &node, t_bound);
             let (vt, vm) = avx2.test(&avx2.prepare_boxes(&slab), &node, t_bound);
@@ -1021,6 +795,5 @@ mod tests {
             checked += 1;
         }
         assert_eq!(checked, 20_000);
-        assert!(traced > 10_000 && traced < 20_000, "{traced}");
     }
 }

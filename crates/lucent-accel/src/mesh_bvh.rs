@@ -479,7 +479,6 @@ impl MeshBvh {
     /// Closest hit with `0 < t < t_max`. The triangle tests pick the hit;
     /// its distance is then recomputed in f64 ([`plane_distance`]), so `t` is
     /// nearly exact even for grazing rays.
-    #[inline]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<MeshHit> {
         self.intersect_tallied(ray, t_max, &mut ())
     }
@@ -553,7 +552,6 @@ impl MeshBvh {
     }
 
     /// Whether anything is hit with `0 < t < t_max`.
-    #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         self.occluded_tallied(ray, t_max, &mut ())
     }

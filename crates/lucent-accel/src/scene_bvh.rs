@@ -196,7 +196,6 @@ impl SceneBvh {
     }
 
     /// Closest hit with `0 < t < t_max`.
-    #[inline]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<SceneHit> {
         self.run(Closest {
             scene: self,
@@ -206,7 +205,6 @@ impl SceneBvh {
     }
 
     /// Whether anything is hit with `0 < t < t_max`.
-    #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         self.run(Any {
             scene: self,

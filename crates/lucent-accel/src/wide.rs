@@ -113,18 +113,6 @@ pub(crate) trait BoxTest: Copy {
     type Ray: Copy;
     /// `slab` prepared for this test (once per query).
     fn prepare_boxes(self, slab: &SlabRay) -> Self::Ray;
-    /// `ray` prepared for this test, or `None` when it cannot be traced
-    /// ([`traceable`]): [`SlabRay::new`] then [`BoxTest::prepare_boxes`],
-    /// which a test may do its own way, to the same constants bit for bit
-    /// (the AVX2 one in registers, once per query).
-    #[inline(always)]
-    fn prepare_ray(self, ray: &Ray) -> Option<Self::Ray> {
-        if traceable(ray) {
-            Some(self.prepare_boxes(&SlabRay::new(ray)))
-        } else {
-            None
-        }
-    }
     /// Tests `node`'s children against the prepared ray.
     fn test(self, ray: &Self::Ray, node: &WideNode, t_bound: f32) -> ([f32; W], u32);
     /// The entered lane (of non-zero `mask`) that a closest-hit walk goes
@@ -550,9 +538,10 @@ impl WideBvh {
         F: Leaves,
         T: Tally,
     {
-        let Some(slab) = boxes.prepare_ray(ray) else {
+        if !traceable(ray) {
             return false;
-        };
+        }
+        let slab = boxes.prepare_boxes(&SlabRay::new(ray));
         let Some(mut node) = self.nodes.first() else {
             return false;
         };
