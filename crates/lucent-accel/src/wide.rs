@@ -559,41 +559,64 @@ impl WideBvh {
         loop {
             // `node` was tested: go to one entered child, stack the others.
             let mut entry = if mask != 0 {
-                let lane = if ORDERED {
-                    boxes.nearest_lane(&t_in, mask)
-                } else {
-                    pick_lane::<false>(&t_in, mask)
-                };
-                let mut rest = mask & !(1 << lane);
-                let base = sp;
-                if !ORDERED {
-                    // Any hit: entries only (see `pop`), in lane order.
-                    boxes.push_entries(&mut stack_e, &mut sp, &node.child, rest);
-                    rest = 0;
-                }
-                while rest != 0 {
-                    let l = rest.trailing_zeros() as usize;
-                    if sp < N {
-                        // Closest hit: keep this node's stacked children
-                        // farthest first (insertion by entry distance), so
-                        // the nearer ones pop first and shrink `t_bound`
-                        // before the farther ones are reached.
-                        let (t, e) = (t_in[l], node.child[l]);
-                        let mut at = sp;
-                        if ORDERED {
-                            while at > base && stack_t[at - 1] < t {
-                                stack_t[at] = stack_t[at - 1];
-                                stack_e[at] = stack_e[at - 1];
-                                at -= 1;
-                            }
-                            stack_t[at] = t;
-                        }
-                        stack_e[at] = e;
+                let pair = mask & (mask - 1);
+                if ORDERED && pair == 0 {
+                    // Closest hit, one entered lane.
+                    node.child[mask.trailing_zeros() as usize % W]
+                } else if ORDERED && pair & (pair - 1) == 0 {
+                    // Closest hit, two entered lanes `a < b`: the nearest
+                    // (`pick_lane`'s choice: `b` only when strictly nearer)
+                    // without a branch on their distances, the other
+                    // stacked alone.
+                    let a = mask.trailing_zeros() as usize % W;
+                    let b = pair.trailing_zeros() as usize % W;
+                    let (ta, tb) = (t_in[a], t_in[b]);
+                    let nearer = tb < ta;
+                    let near = std::hint::select_unpredictable(nearer, b, a);
+                    let far = std::hint::select_unpredictable(nearer, a, b);
+                    if let (Some(st), Some(se)) = (stack_t.get_mut(sp), stack_e.get_mut(sp)) {
+                        *st = if nearer { ta } else { tb };
+                        *se = node.child[far];
                         sp += 1;
                     }
-                    rest &= rest - 1;
+                    node.child[near]
+                } else {
+                    let lane = if ORDERED {
+                        boxes.nearest_lane(&t_in, mask)
+                    } else {
+                        pick_lane::<false>(&t_in, mask)
+                    };
+                    let mut rest = mask & !(1 << lane);
+                    let base = sp;
+                    if !ORDERED {
+                        // Any hit: entries only (see `pop`), in lane order.
+                        boxes.push_entries(&mut stack_e, &mut sp, &node.child, rest);
+                        rest = 0;
+                    }
+                    while rest != 0 {
+                        let l = rest.trailing_zeros() as usize;
+                        if sp < N {
+                            // Closest hit: keep this node's stacked children
+                            // farthest first (insertion by entry distance), so
+                            // the nearer ones pop first and shrink `t_bound`
+                            // before the farther ones are reached.
+                            let (t, e) = (t_in[l], node.child[l]);
+                            let mut at = sp;
+                            if ORDERED {
+                                while at > base && stack_t[at - 1] < t {
+                                    stack_t[at] = stack_t[at - 1];
+                                    stack_e[at] = stack_e[at - 1];
+                                    at -= 1;
+                                }
+                                stack_t[at] = t;
+                            }
+                            stack_e[at] = e;
+                            sp += 1;
+                        }
+                        rest &= rest - 1;
+                    }
+                    node.child[lane]
                 }
-                node.child[lane]
             } else {
                 let Some(e) = pop::<ORDERED, N>(&stack_t, &stack_e, &mut sp, t_bound) else {
                     return false;
