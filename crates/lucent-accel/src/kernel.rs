@@ -176,12 +176,11 @@ impl BoxTest for Avx2 {
     /// [`crate::wide::pick_lane`]'s ordered choice without a branch per
     /// lane (their outcomes, comparisons of random rays' entry distances, do
     /// not predict): the minimum over the entered lanes (the others at
-    /// `+inf`) and the lowest entered lane holding it.
+    /// `+inf`) and the lowest entered lane holding it. (The walk asks only
+    /// for nodes that entered three lanes or more, so there is no shortcut
+    /// for one.)
     #[inline(always)]
     fn nearest_lane(self, t_in: &[f32; W], mask: u32) -> usize {
-        if mask & mask.wrapping_sub(1) == 0 {
-            return (mask.trailing_zeros() & 7) as usize;
-        }
         // SAFETY: `self` proves AVX2; the load reads exactly `t_in`.
         unsafe {
             let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
