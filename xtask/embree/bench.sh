@@ -28,6 +28,8 @@ cargo build --release -q -p lucent-bench --manifest-path "$ROOT/Cargo.toml"
 LUCENT=$ROOT/target/release/lucent-bench
 mkdir -p "$OUT"
 RES=$OUT/results.jsonl
+# This run's results only: the summary's medians must not mix in an earlier run's.
+: >"$RES"
 lock() { flock /tmp/lucent-bench.lock "$@"; }
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$OUT/load.txt"
 for round in $(seq "$ROUNDS"); do
