@@ -145,7 +145,7 @@ fn pass(
 ) -> Option<RayStats> {
     let width = film.width() as usize;
     let cut = AtomicBool::new(false);
-    let isa = Isa::detect();
+    let isa = sampler.isa();
     let stats = film
         .sum
         .par_chunks_mut(width.max(1))
@@ -445,7 +445,7 @@ pub fn render_to_error(scene: &RenderScene, settings: &RenderSettings, target: f
     let n_values = 3.0 * f64::from(width) * f64::from(height);
     let mut stats = RayStats::default();
     let mut rounds = 0;
-    let isa = Isa::detect();
+    let isa = sampler.isa();
     let (sq, mean) = loop {
         stats = stats
             + tiles

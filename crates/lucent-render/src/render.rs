@@ -259,6 +259,9 @@ pub(crate) struct PixelSampler<'a> {
     width: u64,
     /// `hash_u64(&[seed])`, which every key continues.
     seed_hash: u64,
+    /// The copy of the loop the sampler's rows run in ([`Isa::run`]), the
+    /// one its path tracer's BSDF mixtures call too.
+    isa: Isa,
 }
 
 impl<'a> PixelSampler<'a> {
@@ -280,7 +283,15 @@ impl<'a> PixelSampler<'a> {
             tracer,
             width: u64::from(width),
             seed_hash: hash_u64(&[settings.seed]),
+            isa,
         }
+    }
+
+    /// The copy of the loop this sampler was made for: callers run its
+    /// rows with [`Isa::run`] on this value, so that the loop and the BSDF
+    /// mixtures it calls are the same copy.
+    pub(crate) fn isa(&self) -> Isa {
+        self.isa
     }
 
     /// `hash_u64(&[seed, pixel])` for pixel (`col`, `row`): what
