@@ -24,12 +24,12 @@
 //! AVX2 one in registers, without a branch per lane) but never another
 //! choice. A closest-hit node that entered one or two children needs
 //! neither: the walk takes the one, or the nearer of the two by one
-//! comparison and stacks the other alone. The slab test is conservative in the manner of Ize
-//! ("Robust BVH Ray Traversal", JCGT 2013): the reciprocal direction is
-//! scaled down by 2^-20 for entry distances and up for exit distances,
-//! which covers the four roundings of `(plane - origin) * (1 / dir) *
-//! scale`, so rounding never drops a box the ray actually touches and the
-//! watertight triangle test stays watertight.
+//! comparison and stacks the other alone. The slab test is conservative in
+//! the manner of Ize ("Robust BVH Ray Traversal", JCGT 2013): the
+//! reciprocal direction is scaled down by 2^-20 for entry distances and up
+//! for exit distances, which covers the four roundings of `(plane -
+//! origin) * (1 / dir) * scale`, so rounding never drops a box the ray
+//! actually touches and the watertight triangle test stays watertight.
 
 use crate::Bvh;
 use lucent_geom::Ray;
