@@ -55,75 +55,34 @@ use std::arch::x86_64::{
 };
 
 /// Proof that the processor has AVX2, FMA, BMI1, BMI2, LZCNT and POPCNT (made only by
-/// [`Avx2::detect`]), and whether it has AVX-512 too.
+/// [`Avx2::detect`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Avx2 {
-    /// The processor also has AVX-512 F, VL, BW, DQ and CD: queries then
-    /// run in [`run_avx512`], the same code with 32 vector registers.
-    evex: bool,
+    _private: (),
 }
 
 impl Avx2 {
-    /// The kernel, where this processor runs it and the environment allows
-    /// it: `LUCENT_TRAVERSAL_ISA`, or where that is unset `LUCENT_ISA`, set
-    /// to `baseline` turns it off (the portable walk), `avx2` keeps it off
-    /// AVX-512; unset or any other value limits nothing.
+    /// The kernel, where this processor runs it.
     pub(crate) fn detect() -> Option<Self> {
         use std::arch::is_x86_feature_detected as has;
-        let limit = std::env::var("LUCENT_TRAVERSAL_ISA")
-            .or_else(|_| std::env::var("LUCENT_ISA"))
-            .map(|v| v.to_ascii_lowercase());
-        let (avx2_allowed, evex_allowed) = match limit.as_deref() {
-            Ok("baseline") => (false, false),
-            Ok("avx2") => (true, false),
-            _ => (true, true),
-        };
-        let avx2 = has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt") && has!("popcnt");
-        let avx512 = has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq") && has!("avx512cd");
-        (avx2_allowed && avx2).then_some(Self {
-            evex: evex_allowed && avx512,
-        })
-    }
-
-    /// The same proof without AVX-512: queries run in [`run_avx2`] (for
-    /// the tests that compare the two copies).
-    #[cfg(test)]
-    pub(crate) fn without_evex(self) -> Self {
-        Self { evex: false }
-    }
-
-    /// Whether queries run in the AVX-512 copy.
-    #[cfg(test)]
-    pub(crate) fn evex(self) -> bool {
-        self.evex
+        (has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt") && has!("popcnt"))
+            .then_some(Self { _private: () })
     }
 
     /// Runs query `q` with the AVX2 box test and AVX2 pack tests, compiled
-    /// for AVX2 and FMA (and AVX-512 where there is one): the query, the
-    /// walk and the tests inline into one function with those features, so
-    /// the intrinsics inline into it.
+    /// for AVX2 and FMA: the query, the walk and the tests inline into one
+    /// function with those features, so the intrinsics inline into it.
     #[inline]
     pub(crate) fn run<Q: Query>(self, q: Q) -> Q::Output {
-        if self.evex {
-            // SAFETY: `evex` is set only where `detect` found AVX-512 F,
-            // VL, BW, DQ and CD besides AVX2, FMA and the rest.
-            unsafe { run_avx512(self, q) }
-        } else {
-            // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
-            unsafe { run_avx2(self, q) }
-        }
+        // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
+        unsafe { run_avx2(self, q) }
     }
 
     /// [`Avx2::run`] with the portable pack tests (for Moller-Trumbore).
     #[inline]
     pub(crate) fn run_boxes<Q: Query>(self, q: Q) -> Q::Output {
-        if self.evex {
-            // SAFETY: as in `run`.
-            unsafe { run_boxes_avx512(self, q) }
-        } else {
-            // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
-            unsafe { run_boxes_avx2(self, q) }
-        }
+        // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
+        unsafe { run_boxes_avx2(self, q) }
     }
 }
 
@@ -134,19 +93,6 @@ fn run_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
 
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn run_boxes_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
-    q.run(avx2, PortableLeaf)
-}
-
-/// [`run_avx2`] with AVX-512 F, VL, BW, DQ and CD as well: the same source
-/// and intrinsics, compiled with 32 vector registers and mask registers.
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-fn run_avx512<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
-    q.run(avx2, avx2)
-}
-
-/// [`run_boxes_avx2`] with AVX-512 as well.
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-fn run_boxes_avx512<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
     q.run(avx2, PortableLeaf)
 }
 

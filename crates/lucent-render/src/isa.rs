@@ -48,84 +48,41 @@ pub(crate) trait Kernel {
     fn run(self) -> Self::Output;
 }
 
-/// The instruction set the render loop runs in: baseline, the AVX2 copy or
-/// the AVX-512 copy.
+/// The instruction set the render loop runs in: baseline, or the AVX2 copy.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Isa {
-    /// The copy [`Isa::run`] takes (never above `Baseline` off x86-64).
-    tier: Tier,
-}
-
-/// The compiled copies, lowest first.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-enum Tier {
-    /// As the crate is compiled: baseline x86-64, or another architecture.
-    Baseline,
-    /// [`AVX2_FEATURES`]: sixteen 256-bit registers, VEX encoding.
+    /// The processor has every feature `run_avx2` is compiled with (never
+    /// off x86-64, where nothing reads it).
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "no AVX2 copy off x86-64"))]
-    Avx2,
-    /// [`AVX512_FEATURES`]: the same code with 32 vector registers and
-    /// mask registers (EVEX encoding); the vectors stay at most 256 bits
-    /// wide unless LLVM widens a loop itself.
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "no AVX-512 copy off x86-64"))]
-    Avx512,
+    avx2: bool,
 }
 
 impl Isa {
-    /// The best copy this processor runs, at most the one `LUCENT_ISA`
-    /// names (`baseline`, `avx2` or `avx512`; unset or anything else puts
-    /// no limit).
+    /// The best copy this processor runs.
     pub(crate) fn detect() -> Self {
-        Self {
-            tier: present().min(limit()),
-        }
+        Self { avx2: avx2_present() }
     }
 
     /// The baseline copy, whatever the processor (the reference).
     #[cfg(test)]
     pub(crate) fn baseline() -> Self {
-        Self { tier: Tier::Baseline }
-    }
-
-    /// The AVX2 copy where the processor has it, even where it has AVX-512
-    /// too (for the tests that compare the copies).
-    #[cfg(test)]
-    pub(crate) fn avx2() -> Self {
-        Self {
-            tier: present().min(Tier::Avx2),
-        }
-    }
-
-    /// The best copy this processor runs, whatever `LUCENT_ISA` says (for
-    /// the tests that compare the copies).
-    #[cfg(test)]
-    pub(crate) fn detect_unlimited() -> Self {
-        Self { tier: present() }
+        Self { avx2: false }
     }
 
     /// Whether [`Isa::run`] takes the AVX2 copy.
     #[cfg(all(test, target_arch = "x86_64"))]
     pub(crate) fn is_avx2(self) -> bool {
-        self.tier == Tier::Avx2
-    }
-
-    /// Whether [`Isa::run`] takes the AVX-512 copy.
-    #[cfg(all(test, target_arch = "x86_64"))]
-    pub(crate) fn is_avx512(self) -> bool {
-        self.tier == Tier::Avx512
+        self.avx2
     }
 
     /// Runs `kernel` in the copy this value names.
     #[inline(always)]
     pub(crate) fn run<K: Kernel>(self, kernel: K) -> K::Output {
         #[cfg(target_arch = "x86_64")]
-        match self.tier {
-            // SAFETY: a tier above `Baseline` comes only from `present`,
-            // which found every feature that tier's function enables.
-            Tier::Avx512 => return unsafe { run_avx512(kernel) },
-            // SAFETY: as above.
-            Tier::Avx2 => return unsafe { run_avx2(kernel) },
-            Tier::Baseline => {}
+        if self.avx2 {
+            // SAFETY: `avx2` is set only by `detect`, once
+            // `avx2_present` found every feature `run_avx2` enables.
+            return unsafe { run_avx2(kernel) };
         }
         kernel.run()
     }
@@ -140,13 +97,10 @@ impl MixtureCode for Isa {
     #[inline(always)]
     fn sample(self, bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         #[cfg(target_arch = "x86_64")]
-        match self.tier {
-            // SAFETY: as in `run`: a tier above `Baseline` is set only once
-            // every feature its functions enable was found.
-            Tier::Avx512 => return unsafe { sample_mixture_avx512(bsdf, wo, u_lobe, u) },
-            // SAFETY: as above.
-            Tier::Avx2 => return unsafe { sample_mixture_avx2(bsdf, wo, u_lobe, u) },
-            Tier::Baseline => {}
+        if self.avx2 {
+            // SAFETY: as in `run`: `avx2` is set only once every feature
+            // the function enables was found.
+            return unsafe { sample_mixture_avx2(bsdf, wo, u_lobe, u) };
         }
         Compiled.sample(bsdf, wo, u_lobe, u)
     }
@@ -154,12 +108,9 @@ impl MixtureCode for Isa {
     #[inline(always)]
     fn eval_pdf(self, bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
         #[cfg(target_arch = "x86_64")]
-        match self.tier {
+        if self.avx2 {
             // SAFETY: as in `sample`.
-            Tier::Avx512 => return unsafe { eval_pdf_mixture_avx512(bsdf, wo, wi) },
-            // SAFETY: as in `sample`.
-            Tier::Avx2 => return unsafe { eval_pdf_mixture_avx2(bsdf, wo, wi) },
-            Tier::Baseline => {}
+            return unsafe { eval_pdf_mixture_avx2(bsdf, wo, wi) };
         }
         Compiled.eval_pdf(bsdf, wo, wi)
     }
@@ -183,49 +134,17 @@ fn eval_pdf_mixture_avx2(bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32)
     bsdf.eval_pdf_mixture(wo, wi)
 }
 
-/// [`Bsdf::sample_mixture_inline`] compiled for AVX-512, out of line.
+/// Whether this processor has every feature [`run_avx2`] is compiled with.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-#[inline(never)]
-fn sample_mixture_avx512(bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-    bsdf.sample_mixture_inline(wo, u_lobe, u)
-}
-
-/// [`Bsdf::eval_pdf_mixture`] compiled for AVX-512, out of line.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-#[inline(never)]
-fn eval_pdf_mixture_avx512(bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
-    bsdf.eval_pdf_mixture(wo, wi)
-}
-
-/// The highest tier whose every feature this processor has.
-#[cfg(target_arch = "x86_64")]
-fn present() -> Tier {
+fn avx2_present() -> bool {
     use std::arch::is_x86_feature_detected as has;
-    let avx2 = has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt") && has!("popcnt");
-    let avx512 = has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq") && has!("avx512cd");
-    match (avx2, avx512) {
-        (true, true) => Tier::Avx512,
-        (true, false) => Tier::Avx2,
-        (false, _) => Tier::Baseline,
-    }
+    has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt") && has!("popcnt")
 }
 
-/// No other copy off x86-64.
+/// No AVX2 copy off x86-64.
 #[cfg(not(target_arch = "x86_64"))]
-fn present() -> Tier {
-    Tier::Baseline
-}
-
-/// The highest tier `LUCENT_ISA` allows: `baseline`, `avx2` or `avx512`
-/// (any case); unset, or any other value, allows every tier.
-fn limit() -> Tier {
-    match std::env::var("LUCENT_ISA").map(|v| v.to_ascii_lowercase()).as_deref() {
-        Ok("baseline") => Tier::Baseline,
-        Ok("avx2") => Tier::Avx2,
-        _ => Tier::Avx512,
-    }
+fn avx2_present() -> bool {
+    false
 }
 
 /// `kernel` compiled for AVX2 and its companions: its `run` and what that
@@ -233,15 +152,6 @@ fn limit() -> Tier {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
-    kernel.run()
-}
-
-/// `kernel` compiled for AVX-512 (F, VL, BW, DQ, CD) on top of the AVX2
-/// set: the same source, with 32 vector registers to keep the loop's state
-/// in.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq,avx512cd")]
-fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
     kernel.run()
 }
 
@@ -327,16 +237,9 @@ mod tests {
         (f.to_array().map(f32::to_bits), p.to_bits())
     }
 
-    /// Every copy this processor runs (the AVX2 one, and the AVX-512 one
-    /// where there is one) gives the baseline's bits.
     #[test]
-    fn the_avx2_and_avx512_mixture_code_give_the_baseline_bits() {
-        let baseline = Isa::baseline();
-        let copies = [Isa::avx2(), Isa::detect_unlimited()];
-        #[cfg(target_arch = "x86_64")]
-        if !copies[1].is_avx512() {
-            eprintln!("no AVX-512 on this processor: only the AVX2 copy is compared");
-        }
+    fn the_avx2_mixture_code_gives_the_baseline_bits() {
+        let (baseline, detected) = (Isa::baseline(), Isa::detect());
         let mut rng = Pcg32::new(7, 11);
         let mut compared = 0;
         for bsdf in bsdfs() {
@@ -347,29 +250,27 @@ mod tests {
                 };
                 let (u_lobe, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
                 let reference = sample_bits(Compiled.sample(&bsdf, wo, u_lobe, u));
-                let reference_eval = eval_bits(Compiled.eval_pdf(&bsdf, wo, wi));
                 assert_eq!(sample_bits(baseline.sample(&bsdf, wo, u_lobe, u)), reference);
-                assert_eq!(eval_bits(baseline.eval_pdf(&bsdf, wo, wi)), reference_eval);
-                for isa in copies {
-                    assert_eq!(
-                        sample_bits(isa.sample(&bsdf, wo, u_lobe, u)),
-                        reference,
-                        "{isa:?} {bsdf:?} {wo:?} {u_lobe} {u}"
-                    );
-                    assert_eq!(
-                        sample_bits(bsdf.sample_local_in(isa, wo, u_lobe, u)),
-                        sample_bits(bsdf.sample_local(wo, u_lobe, u))
-                    );
-                    assert_eq!(
-                        eval_bits(isa.eval_pdf(&bsdf, wo, wi)),
-                        reference_eval,
-                        "{isa:?} {bsdf:?} {wo:?} {wi:?}"
-                    );
-                    assert_eq!(
-                        eval_bits(bsdf.eval_pdf_in(isa, wo, wi)),
-                        eval_bits(bsdf.eval_pdf(wo, wi))
-                    );
-                }
+                assert_eq!(
+                    sample_bits(detected.sample(&bsdf, wo, u_lobe, u)),
+                    reference,
+                    "{bsdf:?} {wo:?} {u_lobe} {u}"
+                );
+                assert_eq!(
+                    sample_bits(bsdf.sample_local_in(detected, wo, u_lobe, u)),
+                    sample_bits(bsdf.sample_local(wo, u_lobe, u))
+                );
+                let reference = eval_bits(Compiled.eval_pdf(&bsdf, wo, wi));
+                assert_eq!(eval_bits(baseline.eval_pdf(&bsdf, wo, wi)), reference);
+                assert_eq!(
+                    eval_bits(detected.eval_pdf(&bsdf, wo, wi)),
+                    reference,
+                    "{bsdf:?} {wo:?} {wi:?}"
+                );
+                assert_eq!(
+                    eval_bits(bsdf.eval_pdf_in(detected, wo, wi)),
+                    eval_bits(bsdf.eval_pdf(wo, wi))
+                );
                 compared += 1;
             }
         }
