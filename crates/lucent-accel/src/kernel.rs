@@ -45,11 +45,11 @@ use crate::wide::Query;
 use crate::wide::{BoxTest, SlabRay, W, WideNode};
 use lucent_geom::{PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, edge_f64};
 use std::arch::x86_64::{
-    __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _mm_cvtsd_f64, _mm_loadl_epi64,
-    _mm_setr_ps, _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256, _mm256_andnot_ps, _mm256_blendv_ps,
-    _mm256_castpd256_pd128, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32, _mm256_cvtepu8_epi32,
-    _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps, _mm256_loadu_si256, _mm256_max_ps,
-    _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
+    __m256, __m256d, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ, _MM_HINT_T0, _mm_cvtsd_f64,
+    _mm_loadl_epi64, _mm_prefetch, _mm_setr_ps, _mm_unpackhi_pd, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256,
+    _mm256_andnot_ps, _mm256_blendv_ps, _mm256_castpd256_pd128, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_cmpeq_epi32,
+    _mm256_cvtepu8_epi32, _mm256_cvtps_pd, _mm256_div_ps, _mm256_extractf128_pd, _mm256_loadu_ps, _mm256_loadu_si256,
+    _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_ps, _mm256_permute_ps,
     _mm256_permute2f128_ps, _mm256_permute4x64_pd, _mm256_permutevar8x32_epi32, _mm256_set1_epi32, _mm256_set1_ps,
     _mm256_setr_epi32, _mm256_setzero_ps, _mm256_storeu_ps, _mm256_storeu_si256, _mm256_sub_pd, _mm256_sub_ps,
 };
@@ -214,6 +214,17 @@ impl BoxTest for Avx2 {
             _mm256_storeu_si256(dst.as_mut_ptr().cast(), _mm256_permutevar8x32_epi32(entries, order));
         }
         *sp += lanes.count_ones() as usize;
+    }
+
+    /// `prefetcht0` per line (the hint to bring a line into every cache
+    /// level).
+    #[inline(always)]
+    fn prefetch(self, at: *const u8, lines: usize) {
+        for line in 0..lines {
+            // SAFETY: a prefetch is a hint that reads nothing and never
+            // faults, whatever the address; `wrapping_add` makes none.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(at.wrapping_add(64 * line).cast::<i8>()) };
+        }
     }
 }
 

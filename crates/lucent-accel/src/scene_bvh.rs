@@ -7,6 +7,14 @@ use crate::{Aabb, BuildParams, Bvh, MeshBvh, MeshHit};
 use lucent_geom::{Affine3A, Ray};
 use std::sync::Arc;
 
+/// How far below a mesh's root an instance's box is made from
+/// ([`MeshBvh::transformed_bounds`]): the moved boxes of up to 512 subtrees
+/// instead of the moved root box, which a rotated instance (every dragon
+/// of the heavy scene) overfills, so that fewer rays enter an instance
+/// only to miss all of its mesh. Levels 1, 2 and 3 took the heavy scene
+/// from 4505 to 4435, 4399 and 4380 instructions per sample.
+const INSTANCE_BOX_LEVELS: usize = 3;
+
 /// One placement of a mesh in the world.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance {
@@ -112,9 +120,9 @@ impl SceneBvh {
         let boxes: Vec<Aabb> = instances
             .iter()
             .map(|inst| {
-                meshes
-                    .get(inst.mesh as usize)
-                    .map_or(Aabb::EMPTY, |m| m.bounds().transformed(&inst.world_from_object))
+                meshes.get(inst.mesh as usize).map_or(Aabb::EMPTY, |m| {
+                    m.transformed_bounds(&inst.world_from_object, INSTANCE_BOX_LEVELS)
+                })
             })
             .collect();
         let top_params = BuildParams {

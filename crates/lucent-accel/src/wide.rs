@@ -43,6 +43,11 @@ const PARALLEL_NODES: usize = 8192;
 pub(crate) const LEAF_BIT: u32 = 1 << 31;
 /// Most packs one leaf can hold (two bits of the entry).
 pub(crate) const MAX_LEAF_PACKS: usize = 4;
+/// Cache lines a prefetched node may span (224 bytes from a multiple of 32).
+const NODE_LINES: usize = 4;
+/// Whether walks that prefetch ask for entered interior children's lines
+/// too, not only for entered leaves' first packs.
+const PREFETCH_NODES: bool = true;
 /// Scales the reciprocal direction for entry distances: 1 - 2^-20.
 pub(crate) const NEAR_SCALE: f32 = 1.0 - 1.0 / 1_048_576.0;
 /// Scales the reciprocal direction for exit distances: 1 + 2^-20.
@@ -131,6 +136,11 @@ pub(crate) trait BoxTest: Copy {
     fn push_entries<const N: usize>(self, stack: &mut [u32; N], sp: &mut usize, child: &[u32; W], lanes: u32) {
         push_entries(stack, sp, child, lanes);
     }
+    /// Asks the caches for the `lines` 64-byte lines from `at`: a hint that
+    /// never faults, so `at` need not point into anything. The portable
+    /// test asks for nothing.
+    #[inline(always)]
+    fn prefetch(self, _at: *const u8, _lines: usize) {}
 }
 
 /// The portable box test: [`SlabRay::test`], safe Rust.
@@ -558,9 +568,30 @@ impl WideBvh {
         let mut stack_t = [0.0f32; N];
         let mut stack_e = [0u32; N];
         let mut sp = 0usize;
+        // Where a walk asks the caches for children ahead of their reads:
+        // the box test can (the AVX2 one) and the leaves ask for it (see
+        // `Leaves::prefetch`). Hints only: the addresses made here
+        // (`wrapping_add`) are never read through.
+        let prefetch = if B::SIMD { leaf.prefetch() } else { None };
+        let nodes_at = self.nodes.as_ptr().cast::<u8>();
         loop {
             // `node` was tested: go to one entered child, stack the others.
             let mut entry = if mask != 0 {
+                if let Some((packs_at, pack_lines)) = prefetch {
+                    // Every entered child's lines are asked for now: the
+                    // nearest is read next, the stacked ones later, while
+                    // the walk is busy elsewhere.
+                    let mut lanes = mask;
+                    while lanes != 0 {
+                        let e = node.child[lanes.trailing_zeros() as usize % W];
+                        if e & LEAF_BIT != 0 {
+                            boxes.prefetch(packs_at.wrapping_add(leaf_range(e).0 * F::ENTRY_BYTES), pack_lines);
+                        } else if PREFETCH_NODES {
+                            boxes.prefetch(nodes_at.wrapping_add(e as usize * size_of::<WideNode>()), NODE_LINES);
+                        }
+                        lanes &= lanes - 1;
+                    }
+                }
                 let pair = mask & (mask - 1);
                 if ORDERED && pair == 0 {
                     // Closest hit, one entered lane.
@@ -730,8 +761,18 @@ fn pop<const ORDERED: bool, const N: usize>(
 /// mesh queries implement it on structs, whose always-inlined `visit` lets a
 /// query compiled for AVX2 inline the triangle tests' intrinsics too.
 pub(crate) trait Leaves {
+    /// Bytes of one entry (a triangle pack), for [`Leaves::prefetch`].
+    const ENTRY_BYTES: usize = 0;
     /// Tests the leaf's entries `first..first + count`.
     fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool;
+    /// Where the entries start and how many cache lines one spans, when
+    /// the walk should ask the caches for the lines of every child a node's
+    /// test enters (interior children's, and a leaf's first entry), ahead
+    /// of their reads; `None` for no prefetching.
+    #[inline(always)]
+    fn prefetch(&self) -> Option<(*const u8, usize)> {
+        None
+    }
 }
 
 impl<F: FnMut(usize, usize, &mut f32) -> bool> Leaves for F {
