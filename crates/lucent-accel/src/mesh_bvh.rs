@@ -81,6 +81,13 @@ const PACK_LINES: usize = size_of::<Pack>() / 64;
 /// seed scene it only added instructions (see docs/benchmarks.md).
 const INSTANCED_PREFETCH: bool = true;
 
+/// What a mesh walk's leaves answer to [`Leaves::prefetch`]: where the
+/// packs start and how many lines one spans, or `None` when `on` is off.
+#[inline(always)]
+fn pack_prefetch(packs: &[Pack], on: bool) -> Option<(*const u8, usize)> {
+    on.then(|| (packs.as_ptr().cast(), PACK_LINES))
+}
+
 const EMPTY_PACK: Pack = Pack {
     v: [[[f32::NAN; LANES]; 3]; 3],
     prim: [u32::MAX; LANES],
@@ -186,11 +193,7 @@ impl<L: LeafTest> Leaves for &mut ClosestLeaves<'_, L> {
     const ENTRY_BYTES: usize = size_of::<Pack>();
     #[inline(always)]
     fn prefetch(&self) -> Option<(*const u8, usize)> {
-        if self.prefetch {
-            Some((self.packs.as_ptr().cast(), PACK_LINES))
-        } else {
-            None
-        }
+        pack_prefetch(self.packs, self.prefetch)
     }
     #[inline(always)]
     fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool {
@@ -231,11 +234,7 @@ impl<L: LeafTest> Leaves for AnyLeaves<'_, L> {
     const ENTRY_BYTES: usize = size_of::<Pack>();
     #[inline(always)]
     fn prefetch(&self) -> Option<(*const u8, usize)> {
-        if self.prefetch {
-            Some((self.packs.as_ptr().cast(), PACK_LINES))
-        } else {
-            None
-        }
+        pack_prefetch(self.packs, self.prefetch)
     }
     #[inline(always)]
     fn visit(&mut self, first: usize, count: usize, _: &mut f32) -> bool {
