@@ -3,7 +3,7 @@
 use crate::wide::{BoxTest, Leaves, Query, Tally, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{
-    Affine3A, PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, Vec3, lane_triangle, plane_distance,
+    Affine3A, PackHits, PreparedRay, Ray, TriangleHit, TrianglePack8, TriangleTest, lane_triangle, plane_distance,
 };
 
 /// Triangles per pack: a leaf's triangles are tested eight at a time.
@@ -501,6 +501,9 @@ impl MeshBvh {
     /// that enters an instance's box but none of its mesh's boxes costs
     /// the instance's whole set-up for nothing.
     pub fn transformed_bounds(&self, m: &Affine3A, levels: usize) -> Aabb {
+        if self.wide.nodes.is_empty() {
+            return self.bounds.transformed(m);
+        }
         let mut out = Aabb::EMPTY;
         let mut todo = vec![(0usize, 1usize)];
         while let Some((at, level)) = todo.pop() {
@@ -508,18 +511,7 @@ impl MeshBvh {
                 continue;
             };
             for lane in 0..crate::wide::W {
-                let b = Aabb {
-                    min: Vec3::new(
-                        node.bounds[0][0][lane],
-                        node.bounds[0][1][lane],
-                        node.bounds[0][2][lane],
-                    ),
-                    max: Vec3::new(
-                        node.bounds[1][0][lane],
-                        node.bounds[1][1][lane],
-                        node.bounds[1][2][lane],
-                    ),
-                };
+                let b = node.lane_box(lane);
                 if b.is_empty() {
                     continue;
                 }
@@ -530,9 +522,6 @@ impl MeshBvh {
                     todo.push((child as usize, level + 1));
                 }
             }
-        }
-        if self.wide.nodes.is_empty() {
-            return self.bounds.transformed(m);
         }
         out
     }

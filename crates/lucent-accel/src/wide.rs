@@ -31,8 +31,8 @@
 //! origin) * (1 / dir) * scale`, so rounding never drops a box the ray
 //! actually touches and the watertight triangle test stays watertight.
 
-use crate::Bvh;
-use lucent_geom::Ray;
+use crate::{Aabb, Bvh};
+use lucent_geom::{Ray, Vec3};
 
 /// Children per node.
 pub(crate) const W: usize = 8;
@@ -68,6 +68,17 @@ pub(crate) struct WideNode {
     /// Child entries: a node index, or `LEAF_BIT | first_pack << 2 |
     /// (packs - 1)`; 0 in unused lanes (never entered).
     pub(crate) child: [u32; W],
+}
+
+impl WideNode {
+    /// Lane `lane`'s box (inverted, so empty, in an unused lane).
+    pub(crate) fn lane_box(&self, lane: usize) -> Aabb {
+        let [lo, hi] = self.bounds;
+        Aabb {
+            min: Vec3::new(lo[0][lane], lo[1][lane], lo[2][lane]),
+            max: Vec3::new(hi[0][lane], hi[1][lane], hi[2][lane]),
+        }
+    }
 }
 
 const EMPTY_NODE: WideNode = WideNode {
@@ -810,17 +821,7 @@ pub(crate) fn check(wide: &WideBvh, n_packs: usize, pack_box: impl Fn(usize) -> 
         assert!(depth <= wide.depth, "depth {depth} > {}", wide.depth);
         let node = &wide.nodes[i];
         for lane in 0..W {
-            let lo = lucent_geom::Vec3::new(
-                node.bounds[0][0][lane],
-                node.bounds[0][1][lane],
-                node.bounds[0][2][lane],
-            );
-            let hi = lucent_geom::Vec3::new(
-                node.bounds[1][0][lane],
-                node.bounds[1][1][lane],
-                node.bounds[1][2][lane],
-            );
-            let b = lucent_geom::Aabb { min: lo, max: hi };
+            let b = node.lane_box(lane);
             if b.is_empty() {
                 continue;
             }
