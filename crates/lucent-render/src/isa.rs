@@ -27,8 +27,13 @@
 //! [`Isa::run`] runs the kernel as it is compiled: that copy is the
 //! reference.
 //!
-//! `unsafe` here: the calls of the three `#[target_feature]` functions
-//! (the loop, the mixture's sample and its evaluation), sound because an
+//! A sample joins its pixel's exact sum through [`Isa::add_sample`], which
+//! in the AVX2 copy converts its three channels to fixed point at once
+//! (`fixed_avx2`, inlined into the loop) instead of one by one.
+//!
+//! `unsafe` here: the calls of the four `#[target_feature]` functions
+//! (the loop, the mixture's sample and its evaluation, the fixed-point
+//! conversion), sound because an
 //! [`Isa`] whose `avx2` is set exists only once [`Isa::detect`] found every
 //! feature they enable.
 #![allow(unsafe_code, reason = "the AVX2 copy of the render loop; see the module docs")]
