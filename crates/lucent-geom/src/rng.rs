@@ -34,6 +34,25 @@ impl Pcg32 {
         xorshifted.rotate_right(rot)
     }
 
+    /// Moves on past `n` values, as `n` calls of [`Pcg32::next_u32`] would,
+    /// without making them: for a draw whose value would go unused, so the
+    /// draws after it are the ones they always were.
+    ///
+    /// ```
+    /// use lucent_geom::Pcg32;
+    /// let (mut a, mut b) = (Pcg32::new(3, 0), Pcg32::new(3, 0));
+    /// a.skip(2);
+    /// b.next_u32();
+    /// b.next_u32();
+    /// assert_eq!(a.next_u32(), b.next_u32());
+    /// ```
+    #[inline]
+    pub fn skip(&mut self, n: u32) {
+        for _ in 0..n {
+            self.state = self.state.wrapping_mul(MULT).wrapping_add(self.inc);
+        }
+    }
+
     /// Uniform float in `[0, 1)` (24 random bits, so never exactly 1).
     #[inline]
     pub fn next_f32(&mut self) -> f32 {

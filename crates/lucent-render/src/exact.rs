@@ -87,8 +87,16 @@ impl ExactRgb {
             self.non_finite = self.non_finite.wrapping_add(1);
             return;
         }
-        for (sum, c) in self.rgb.iter_mut().zip(v.to_array()) {
-            *sum = sum.wrapping_add(to_fixed(c));
+        self.add_fixed(v.to_array().map(to_fixed));
+    }
+
+    /// Adds a finite sample already converted channel by channel to fixed
+    /// point (what `to_fixed` gives; [`crate::isa::Isa::add_sample`]
+    /// converts in vector registers where it can).
+    #[inline(always)]
+    pub(crate) fn add_fixed(&mut self, fixed: [i128; 3]) {
+        for (sum, c) in self.rgb.iter_mut().zip(fixed) {
+            *sum = sum.wrapping_add(c);
         }
     }
 
@@ -118,7 +126,7 @@ impl ExactRgb {
 /// truncated towards zero below, clamped below 2^31 (see the module docs).
 /// `v` is finite. Works on the bits, so it costs a few integer operations.
 #[inline]
-fn to_fixed(v: f32) -> i128 {
+pub(crate) fn to_fixed(v: f32) -> i128 {
     let bits = v.to_bits();
     let biased = ((bits >> 23) & 0xff) as i32;
     let (mantissa, exp) = if biased == 0 {

@@ -27,12 +27,18 @@
 //! [`Isa::run`] runs the kernel as it is compiled: that copy is the
 //! reference.
 //!
-//! `unsafe` here: the calls of the three `#[target_feature]` functions
-//! (the loop, the mixture's sample and its evaluation), sound because an
+//! A sample joins its pixel's exact sum through [`Isa::add_sample`], which
+//! in the AVX2 copy converts its three channels to fixed point at once
+//! (`fixed_avx2`, inlined into the loop) instead of one by one.
+//!
+//! `unsafe` here: the calls of the four `#[target_feature]` functions
+//! (the loop, the mixture's sample and its evaluation, the fixed-point
+//! conversion), sound because an
 //! [`Isa`] whose `avx2` is set exists only once [`Isa::detect`] found every
 //! feature they enable.
 #![allow(unsafe_code, reason = "the AVX2 copy of the render loop; see the module docs")]
 
+use crate::ExactRgb;
 use lucent_geom::{Vec2, Vec3};
 use lucent_shading::{Bsdf, BsdfSample, Compiled, LocalDir, MixtureCode};
 
@@ -88,6 +94,25 @@ impl Isa {
     }
 }
 
+impl Isa {
+    /// Adds the sample `v` to the pixel sum `px`: [`ExactRgb::add_sample`]
+    /// (the same sum, bit for bit), where AVX2 is present with the three
+    /// channels converted to fixed point at once in vector registers
+    /// ([`fixed_avx2`]) instead of one by one. Always inlined, so that in
+    /// the loop's AVX2 copy the conversion inlines too.
+    #[inline(always)]
+    pub(crate) fn add_sample(self, px: &mut ExactRgb, v: Vec3) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 && v.is_finite() {
+            // SAFETY: as in `run`: `avx2` is set only once every feature
+            // the function enables was found.
+            px.add_fixed(unsafe { fixed_avx2(v) });
+            return;
+        }
+        px.add_sample(v);
+    }
+}
+
 /// The general BSDF mixture's code in the copy this value names: the
 /// out-of-line functions of `lucent-shading` (the baseline), or their
 /// bodies compiled here once more for AVX2, as out-of-line functions that
@@ -132,6 +157,61 @@ fn sample_mixture_avx2(bsdf: &Bsdf, wo: LocalDir, u_lobe: f32, u: Vec2) -> Optio
 #[inline(never)]
 fn eval_pdf_mixture_avx2(bsdf: &Bsdf, wo: LocalDir, wi: LocalDir) -> (Vec3, f32) {
     bsdf.eval_pdf_mixture(wo, wi)
+}
+
+/// The three channels of the finite sample `v` in fixed point, each what
+/// `exact::to_fixed` gives (its module docs: units of 2^-64, truncated
+/// towards zero, magnitudes clamped below 2^31), in 64-bit vector lanes.
+///
+/// A magnitude is its 24-bit significand `m` (the implicit bit set) shifted
+/// by `s = biased exponent - 86` (places above 2^-64), once clamped to the
+/// largest float below 2^31 (an integer minimum of the magnitudes' bits).
+/// Its low word is `m << s | m >> -s` and its high word
+/// `m << (s - 64) | m >> (64 - s)`: AVX2's variable shifts give 0 for any
+/// count of 64 or more, a negative count read as unsigned among them, so
+/// each word takes the one shift that applies. Zero and subnormals have
+/// `s = -86` and come out 0, as `to_fixed` makes them; negative channels
+/// take the 128-bit two's complement of their magnitude.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+#[inline]
+fn fixed_avx2(v: Vec3) -> [i128; 3] {
+    use std::arch::x86_64::*;
+    let bits = _mm_castps_si128(_mm_setr_ps(v.x, v.y, v.z, 0.0));
+    let magnitude = _mm_min_epu32(
+        _mm_and_si128(bits, _mm_set1_epi32(0x7fff_ffff)),
+        // 2^31 less one unit in the last place (2^7).
+        _mm_set1_epi32(0x4eff_ffff),
+    );
+    let m = _mm256_cvtepu32_epi64(_mm_or_si128(
+        _mm_and_si128(magnitude, _mm_set1_epi32(0x007f_ffff)),
+        _mm_set1_epi32(0x0080_0000),
+    ));
+    let s = _mm256_cvtepi32_epi64(_mm_sub_epi32(_mm_srli_epi32::<23>(magnitude), _mm_set1_epi32(86)));
+    let (zero, sixty_four) = (_mm256_setzero_si256(), _mm256_set1_epi64x(64));
+    let lo = _mm256_or_si256(_mm256_sllv_epi64(m, s), _mm256_srlv_epi64(m, _mm256_sub_epi64(zero, s)));
+    let hi = _mm256_or_si256(
+        _mm256_sllv_epi64(m, _mm256_sub_epi64(s, sixty_four)),
+        _mm256_srlv_epi64(m, _mm256_sub_epi64(sixty_four, s)),
+    );
+    // -(hi, lo) = (!hi + (lo == 0), -lo); the comparison's all-ones is -1.
+    let negative = _mm256_cvtepi32_epi64(_mm_srai_epi32::<31>(bits));
+    let lo_neg = _mm256_sub_epi64(zero, lo);
+    let hi_neg = _mm256_sub_epi64(
+        _mm256_xor_si256(hi, _mm256_set1_epi64x(-1)),
+        _mm256_cmpeq_epi64(lo, zero),
+    );
+    let lo = _mm256_blendv_epi8(lo, lo_neg, negative);
+    let hi = _mm256_blendv_epi8(hi, hi_neg, negative);
+    let word = |x: __m256i, i: usize| -> u128 {
+        let w = match i {
+            0 => _mm256_extract_epi64::<0>(x),
+            1 => _mm256_extract_epi64::<1>(x),
+            _ => _mm256_extract_epi64::<2>(x),
+        };
+        u128::from(w as u64)
+    };
+    [0, 1, 2].map(|i| ((word(hi, i) << 64) | word(lo, i)) as i128)
 }
 
 /// Whether this processor has every feature [`run_avx2`] is compiled with.
@@ -235,6 +315,57 @@ mod tests {
 
     fn eval_bits((f, p): (Vec3, f32)) -> ([u32; 3], u32) {
         (f.to_array().map(f32::to_bits), p.to_bits())
+    }
+
+    #[test]
+    fn the_avx2_fixed_point_conversion_gives_the_baseline_sums() {
+        // Every exponent with a few significands each, both signs, the
+        // clamp's edges, zeros, subnormals and random bits; summed through
+        // both copies, and each channel alone against `to_fixed`.
+        let mut values = vec![0.0f32, -0.0, f32::MIN_POSITIVE, 1e-45, -1e-45, f32::MAX, f32::MIN];
+        for biased in 0u32..255 {
+            for mantissa in [0u32, 1, 0x40_0000, 0x7f_ffff, 0x12_3456] {
+                let bits = (biased << 23) | mantissa;
+                values.extend([f32::from_bits(bits), f32::from_bits(bits | 0x8000_0000)]);
+            }
+        }
+        for x in [
+            2f32.powi(31),
+            2f32.powi(31) - 128.0,
+            2f32.powi(-41),
+            2f32.powi(-64),
+            2f32.powi(-65),
+        ] {
+            values.extend([x, -x, f32::from_bits(x.to_bits() - 1), f32::from_bits(x.to_bits() + 1)]);
+        }
+        let mut rng = Pcg32::new(3, 5);
+        values.extend(
+            (0..100_000)
+                .map(|_| f32::from_bits(rng.next_u32()))
+                .filter(|v| v.is_finite()),
+        );
+        let (baseline, detected) = (Isa::baseline(), Isa::detect());
+        let (mut a, mut b) = (ExactRgb::ZERO, ExactRgb::ZERO);
+        for w in values.windows(3) {
+            let v = Vec3::new(w[0], w[1], w[2]);
+            let mut one = ExactRgb::ZERO;
+            detected.add_sample(&mut one, v);
+            assert_eq!(
+                one.raw().0,
+                v.to_array().map(crate::exact::to_fixed),
+                "{:?}",
+                v.to_array().map(f32::to_bits)
+            );
+            baseline.add_sample(&mut a, v);
+            detected.add_sample(&mut b, v);
+        }
+        // Non-finite samples are counted apart in both.
+        for v in [Vec3::new(f32::NAN, 1.0, 1.0), Vec3::new(1.0, f32::INFINITY, 0.0)] {
+            baseline.add_sample(&mut a, v);
+            detected.add_sample(&mut b, v);
+        }
+        assert_eq!(a, b);
+        assert_eq!(b.non_finite(), 2);
     }
 
     #[test]

@@ -441,15 +441,33 @@ impl LightSet {
     /// the point is behind an emitter.
     #[inline(always)]
     pub fn sample(&self, from: Vec3A, u_pick: f32, u: Vec2) -> Option<LightSample> {
+        self.sample_drawn(from, u_pick, |_| u)
+    }
+
+    /// [`LightSet::sample`] whose `u` comes from `draw(true)`, called only
+    /// where the picked light reads it (a point on an emitter or a
+    /// direction of the environment); every other outcome (no light, a
+    /// pick of zero probability, a point or directional light) calls
+    /// `draw(false)` instead, once. So a caller drawing `u` from a random
+    /// stream can skip those numbers rather than make them, and its stream
+    /// moves on alike either way.
+    #[inline(always)]
+    pub fn sample_drawn(&self, from: Vec3A, u_pick: f32, draw: impl FnOnce(bool) -> Vec2) -> Option<LightSample> {
         if self.cdf.is_empty() {
+            draw(false);
             return None;
         }
         let idx = self.cdf.partition_point(|&c| c <= u_pick).min(self.cdf.len() - 1);
-        let p = *self.prob.get(idx)?;
+        let Some(&p) = self.prob.get(idx) else {
+            draw(false);
+            return None;
+        };
         if p <= 0.0 {
+            draw(false);
             return None;
         }
         if let Some(e) = self.emitters.get(idx) {
+            let u = draw(true);
             // Uniform over the triangle (Shirley's square-root map).
             let s = u.x.sqrt();
             let (b1, b2) = (1.0 - s, u.y * s);
@@ -488,6 +506,7 @@ impl LightSet {
             });
         }
         let Some(light) = self.lights.get(idx - self.emitters.len()) else {
+            let u = draw(true);
             let s = self.environment.as_ref()?.sample(u)?;
             let wi = Vec3A::from(s.wi);
             return Some(LightSample {
@@ -501,6 +520,7 @@ impl LightSet {
                 delta: false,
             });
         };
+        draw(false);
         Self::delta_sample(light, from, p)
     }
 

@@ -306,7 +306,16 @@ impl<'a> PathTracer<'a> {
             }
             // Next-event estimation.
             if !bsdf.is_delta()
-                && let Some(ls) = lights.sample(p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                // Three draws whatever the light; the point's two are
+                // skipped, not made, where the light reads no point.
+                && let Some(ls) = lights.sample_drawn(p, rng.next_f32(), |read| {
+                    if read {
+                        Vec2::new(rng.next_f32(), rng.next_f32())
+                    } else {
+                        rng.skip(2);
+                        Vec2::ZERO
+                    }
+                })
                 && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
             {
                 let (f, bsdf_pdf) = bsdf.eval_pdf_in(self.isa, wo_unit, wi);

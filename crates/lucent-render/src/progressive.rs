@@ -239,13 +239,14 @@ impl Kernel for PassRow<'_, '_> {
     #[inline(always)]
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
+        let isa = self.sampler.isa();
         for (col, px) in self.pixels.iter_mut().enumerate() {
             if self.cut.load(Ordering::Relaxed) || self.deadline.is_some_and(|d| Instant::now() >= d) {
                 self.cut.store(true, Ordering::Relaxed);
                 return stats;
             }
             for s in self.samples.clone() {
-                px.add_sample(self.sampler.sample(col as u32, self.row, s, &mut stats));
+                isa.add_sample(px, self.sampler.sample(col as u32, self.row, s, &mut stats));
             }
         }
         stats
@@ -266,11 +267,12 @@ impl Kernel for Refine<'_, '_> {
     fn run(self) -> RayStats {
         let Refine { tile, sampler } = self;
         let mut stats = RayStats::default();
+        let isa = sampler.isa();
         for (i, (s, q)) in tile.sum.iter_mut().zip(&mut tile.sum_sq).enumerate() {
             let (col, row) = (tile.x0 + i as u32 % tile.w, tile.y0 + i as u32 / tile.w);
             for idx in tile.n..tile.next {
                 let v = sampler.sample(col, row, idx, &mut stats);
-                s.add_sample(v);
+                isa.add_sample(s, v);
                 let v = v.as_dvec3();
                 *q += v * v;
             }

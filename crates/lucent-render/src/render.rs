@@ -433,11 +433,12 @@ impl Kernel for Row<'_, '_> {
     #[inline(always)]
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
+        let isa = self.sampler.isa();
         for (col, px) in self.pixels.iter_mut().enumerate() {
             let (col, row) = (col as u32, self.row);
             let key = self.sampler.pixel_key(col, row);
             for s in self.samples.clone() {
-                px.add_sample(self.sampler.sample_keyed(key, col, row, s, &mut stats));
+                isa.add_sample(px, self.sampler.sample_keyed(key, col, row, s, &mut stats));
             }
         }
         stats
@@ -512,6 +513,7 @@ impl Kernel for AovRow<'_, '_> {
     #[inline(always)]
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
+        let isa = self.sampler.isa();
         let (((((pixels, albedo), normal), depth), specular), delta) = self.rows;
         let aov_pixels = albedo
             .iter_mut()
@@ -524,7 +526,10 @@ impl Kernel for AovRow<'_, '_> {
             let key = self.sampler.pixel_key(col, row);
             for s in self.samples.clone() {
                 let mut aov = AovSample::default();
-                px.add_sample(self.sampler.sample_aov_keyed(key, col, row, s, &mut stats, &mut aov));
+                isa.add_sample(
+                    px,
+                    self.sampler.sample_aov_keyed(key, col, row, s, &mut stats, &mut aov),
+                );
                 aov.add_to(a, n, d, sp, dl);
             }
         }
