@@ -72,14 +72,44 @@ const PACK_LINES: usize = size_of::<Pack>() / 64;
 
 /// Whether the mesh walks inside an instance walk ([`MeshBvh::intersect_in`],
 /// [`MeshBvh::occluded_in`]) ask the caches for every child a node's test
-/// enters ahead of its reads ([`crate::wide::Leaves::prefetch`]); the
-/// mesh's own queries do not. Two-level trees serve the scenes whose
-/// instances multiply their triangles (the flat tree serves the others),
-/// where the walks miss the caches most: on the heavy scene (2.2 M
-/// triangles from 24 instances of two meshes, about 9 MB of trees)
-/// prefetching saved time; on the flat trees of the Cornell box and the
-/// seed scene it only added instructions (see docs/benchmarks.md).
+/// enters ahead of its reads ([`crate::wide::Leaves::prefetch`]), and a
+/// closest-hit one that found a hit asks for its triangle's indices
+/// ([`MeshBvh::intersect_with`]); the mesh's own queries prefetch only in
+/// trees of at least [`LONE_PREFETCH_BYTES`]. Two-level trees serve the
+/// scenes whose instances multiply their triangles (the flat tree serves
+/// the others), where the walks miss the caches most: on the heavy scene
+/// (2.2 M triangles from 24 instances of two meshes, about 9 MB of trees)
+/// prefetching saved time (see docs/benchmarks.md).
 const INSTANCED_PREFETCH: bool = true;
+
+/// The smallest tree (nodes and packs, [`MeshBvh::bytes`]) whose own
+/// closest-hit queries prefetch as the walks inside instance walks do:
+/// a tree larger than a core's second-level cache (2 MiB on the Zen 4 this
+/// was measured on; 1 MiB leaves room for the rest of a render's data) is
+/// read from farther out by incoherent rays. The bunny's random rays (3.8
+/// MB of tree) traced 9 to 12 % faster with it; the Cornell box's flat tree
+/// (0.6 MB) stays below and runs the code it ran before. The any-hit
+/// queries never prefetch: the bunny's gained nothing (see
+/// docs/benchmarks.md).
+const LONE_PREFETCH_BYTES: usize = 1 << 20;
+
+/// What a closest-hit mesh walk asks the caches for ahead of its reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Prefetch {
+    Nothing,
+    /// Every child a node's test enters ([`Leaves::prefetch`]).
+    Children,
+    /// Those, and the hit triangle's indices ([`MeshBvh::intersect_with`]).
+    ChildrenAndHit,
+}
+
+impl Prefetch {
+    /// [`Prefetch::Children`] where `on`, else nothing.
+    #[inline(always)]
+    const fn children(on: bool) -> Self {
+        if on { Self::Children } else { Self::Nothing }
+    }
+}
 
 /// What a mesh walk's leaves answer to [`Leaves::prefetch`]: where the
 /// packs start and how many lines one spans, or `None` when `on` is off.
@@ -298,22 +328,41 @@ pub struct MeshBvh {
     test: TriangleTest,
     /// Whether the vector kernels are on ([`MeshBvh::with_vector_kernel`]).
     vector: bool,
+    /// Whether the tree's own closest-hit queries prefetch (a tree of at
+    /// least [`LONE_PREFETCH_BYTES`]).
+    prefetch: bool,
+    /// The address of the index array of the mesh the tree was built from
+    /// (`TriMesh::indices`), as a number: walks inside instance walks ask
+    /// the caches for the hit triangle's entry in it
+    /// ([`MeshBvh::intersect_in`]). A hint only, never read through: where
+    /// that mesh has since been dropped it names nothing, and costs one
+    /// prefetch that fetches nothing useful.
+    hit_indices: usize,
 }
 
-/// The closest-hit query, run through [`MeshBvh::run`].
-struct Closest<'a, T> {
+/// The closest-hit query, run through [`MeshBvh::run`]; prefetching
+/// entered children where `PREFETCH` (a tree of at least
+/// [`LONE_PREFETCH_BYTES`]): two compiled queries, so that a small tree's
+/// query runs the code it ran before the choice was made.
+struct Closest<'a, T, const PREFETCH: bool> {
     mesh: &'a MeshBvh,
     ray: &'a Ray,
     t_max: f32,
     tally: &'a mut T,
 }
 
-impl<T: Tally> Query for Closest<'_, T> {
+impl<T: Tally, const PREFETCH: bool> Query for Closest<'_, T, PREFETCH> {
     type Output = Option<MeshHit>;
     #[inline(always)]
     fn run<B: BoxTest, L: LeafTest>(self, boxes: B, leaves: L) -> Option<MeshHit> {
-        self.mesh
-            .intersect_with(boxes, leaves, self.ray, self.t_max, false, self.tally)
+        self.mesh.intersect_with(
+            boxes,
+            leaves,
+            self.ray,
+            self.t_max,
+            Prefetch::children(PREFETCH),
+            self.tally,
+        )
     }
 }
 
@@ -381,6 +430,7 @@ impl MeshBvh {
             }
             pack
         });
+        let prefetch = wide.bytes() + packs.len() * size_of::<Pack>() >= LONE_PREFETCH_BYTES;
         Self {
             wide,
             packs,
@@ -389,6 +439,8 @@ impl MeshBvh {
             bounds: bvh.bounds(),
             test: TriangleTest::default(),
             vector: true,
+            prefetch,
+            hit_indices: mesh.indices().as_ptr() as usize,
         }
     }
 
@@ -465,7 +517,12 @@ impl MeshBvh {
         t_max: f32,
     ) -> Option<MeshHit> {
         if self.runs_with::<B, L>() {
-            self.intersect_with(boxes, leaves, ray, t_max, INSTANCED_PREFETCH, &mut ())
+            let prefetch = if INSTANCED_PREFETCH {
+                Prefetch::ChildrenAndHit
+            } else {
+                Prefetch::Nothing
+            };
+            self.intersect_with(boxes, leaves, ray, t_max, prefetch, &mut ())
         } else {
             self.intersect(ray, t_max)
         }
@@ -578,16 +635,28 @@ impl MeshBvh {
 
     #[inline(always)]
     fn intersect_tallied<T: Tally>(&self, ray: &Ray, t_max: f32, tally: &mut T) -> Option<MeshHit> {
-        self.run(Closest {
-            mesh: self,
-            ray,
-            t_max,
-            tally,
-        })
+        if self.prefetch {
+            self.run(Closest::<T, true> {
+                mesh: self,
+                ray,
+                t_max,
+                tally,
+            })
+        } else {
+            self.run(Closest::<T, false> {
+                mesh: self,
+                ray,
+                t_max,
+                tally,
+            })
+        }
     }
 
     /// The closest-hit query with box test `B` and pack tests `L`,
-    /// prefetching entered children where `prefetch` (and `B` can).
+    /// prefetching what `prefetch` says (where `B` can): entered children,
+    /// and with [`Prefetch::ChildrenAndHit`] (instance walks, whose meshes
+    /// are the renderer's) the hit triangle's entry of the index array at
+    /// `hit_indices`.
     #[inline(always)]
     fn intersect_with<B: BoxTest, L: LeafTest, T: Tally>(
         &self,
@@ -595,18 +664,27 @@ impl MeshBvh {
         leaves: L,
         ray: &Ray,
         t_max: f32,
-        prefetch: bool,
+        prefetch: Prefetch,
         tally: &mut T,
     ) -> Option<MeshHit> {
         let mut visit = ClosestLeaves {
             packs: &self.packs,
-            prefetch,
+            prefetch: prefetch != Prefetch::Nothing,
             leaves,
             ray: LazyRay::new(ray, self.test),
             best: None,
         };
         self.wide
             .walk_sized::<true, B, _, T>(boxes, ray, t_max, &mut visit, tally);
+        if prefetch == Prefetch::ChildrenAndHit
+            && let Some((_, h)) = &visit.best
+        {
+            // The renderer reads the hit triangle's corner indices next;
+            // asked for now, their line comes in during the refinement
+            // and the rest of the instance walk.
+            let at = std::ptr::without_provenance::<u8>(self.hit_indices);
+            boxes.prefetch(at.wrapping_add(h.prim as usize * size_of::<[u32; 3]>()), 1);
+        }
         visit.best.map(|(slot, hit)| self.refine(leaves, ray, slot, hit, t_max))
     }
 
@@ -978,6 +1056,37 @@ pub(crate) mod tests {
                 assert_eq!((cs, os), (cp, op), "the same work");
             }
         }
+    }
+
+    /// A tree of at least `LONE_PREFETCH_BYTES` prefetches in its own
+    /// closest-hit queries and a smaller one does not; prefetching or not,
+    /// and with the portable walk, a query finds the same hit bit for bit
+    /// after the same work.
+    #[test]
+    fn large_trees_prefetch_and_find_the_same_hits() {
+        let small = MeshBvh::build(&random_soup(400, 7), &BuildParams::default());
+        assert!(small.bytes() < LONE_PREFETCH_BYTES && !small.prefetch);
+        let mesh = random_soup(30_000, 8);
+        let large = MeshBvh::build(&mesh, &BuildParams::default());
+        assert!(large.bytes() >= LONE_PREFETCH_BYTES && large.prefetch);
+        assert_eq!(large.hit_indices, mesh.indices().as_ptr() as usize);
+        let mut off = large.clone();
+        off.prefetch = false;
+        let portable = large.clone().with_vector_kernel(false);
+        let bits = |h: Option<MeshHit>| h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim));
+        let mut rng = Pcg32::new(9, 4);
+        let mut counts = [TraversalCounts::default(); 3];
+        for i in 0..2000 {
+            let ray = random_ray(&mut rng);
+            let t_max = [f32::INFINITY, 5.0][i % 2];
+            let [a, b, c] = &mut counts;
+            let got = bits(large.intersect_counted(&ray, t_max, a));
+            assert_eq!(got, bits(off.intersect_counted(&ray, t_max, b)), "{ray:?}");
+            assert_eq!(got, bits(portable.intersect_counted(&ray, t_max, c)), "{ray:?}");
+        }
+        assert_eq!(counts[0], counts[1]);
+        assert_eq!(counts[0], counts[2]);
+        assert!(counts[0].packs > 0);
     }
 
     /// The brute-force reference itself: Moller-Trumbore through the tree
