@@ -155,6 +155,88 @@ fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
     kernel.run()
 }
 
+/// The copy of the lane path tracer's loop (`crate::lane`) a render runs:
+/// its lane loops over `[f32; 16]` compiled for baseline x86-64 (the
+/// reference, and what runs off x86-64), for AVX2 (two ymm registers per
+/// array; what callgrind, which hides AVX-512, can count), or for AVX-512
+/// (one zmm register per array, 64-bit multiplies and variable rotates in
+/// lanes for PCG32, gathers for the triangle records). Each copy gives the
+/// same bits (`render::tests`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum LaneIsa {
+    /// As compiled (baseline).
+    Baseline,
+    /// The AVX2 copy.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "no vector copy off x86-64"))]
+    Avx2,
+    /// The AVX-512 copy.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "no vector copy off x86-64"))]
+    Avx512,
+}
+
+impl LaneIsa {
+    /// The copy `request` names (`LUCENT_LANES`'s value: `1` for AVX-512,
+    /// `avx2`, `baseline`), where this processor runs it; `None` where it
+    /// does not (the scalar tracer then renders).
+    pub(crate) fn for_request(request: &str) -> Option<Self> {
+        match request {
+            "baseline" => Some(Self::Baseline),
+            "avx2" => avx2_present().then_some(Self::Avx2),
+            _ => avx512_present().then_some(Self::Avx512),
+        }
+    }
+
+    /// Every copy this processor runs, baseline first (for tests).
+    #[cfg(test)]
+    pub(crate) fn all_present() -> Vec<Self> {
+        let mut all = vec![Self::Baseline];
+        if avx2_present() {
+            all.push(Self::Avx2);
+        }
+        if avx512_present() {
+            all.push(Self::Avx512);
+        }
+        all
+    }
+
+    /// Runs `kernel` in this copy.
+    #[inline(always)]
+    pub(crate) fn run<K: Kernel>(self, kernel: K) -> K::Output {
+        #[cfg(target_arch = "x86_64")]
+        match self {
+            // SAFETY: a `LaneIsa` other than `Baseline` is made only by
+            // `for_request` and `all_present`, once `avx2_present` or
+            // `avx512_present` found every feature the function enables.
+            Self::Avx2 => return unsafe { run_avx2(kernel) },
+            // SAFETY: as above.
+            Self::Avx512 => return unsafe { run_avx512(kernel) },
+            Self::Baseline => {}
+        }
+        kernel.run()
+    }
+}
+
+/// Whether this processor has every feature [`run_avx512`] is compiled
+/// with.
+#[cfg(target_arch = "x86_64")]
+fn avx512_present() -> bool {
+    use std::arch::is_x86_feature_detected as has;
+    avx2_present() && has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq")
+}
+
+/// No AVX-512 copy off x86-64.
+#[cfg(not(target_arch = "x86_64"))]
+fn avx512_present() -> bool {
+    false
+}
+
+/// `kernel` compiled for AVX-512 (F, VL, BW, DQ) and the AVX2 set.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq")]
+fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -561,6 +561,14 @@ impl Bsdf {
         (self.diffuse + self.glossy + self.conductor + self.dielectric).clamp(Vec3::ZERO, Vec3::ONE)
     }
 
+    /// The albedo of a BSDF whose only lobe is a plain (uncoupled)
+    /// Lambertian one, as `sample` and `eval` use it; `None` for any other
+    /// mixture. For code that shades such BSDFs in batches.
+    #[inline]
+    pub fn lambertian_albedo(&self) -> Option<Vec3> {
+        self.only_diffuse().then_some(self.diffuse)
+    }
+
     /// True when every lobe with weight is a delta: next-event estimation
     /// is pointless, and `eval` and `pdf` are zero everywhere. (A black
     /// BSDF counts as delta too.)

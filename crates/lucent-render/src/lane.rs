@@ -1,0 +1,802 @@
+//! The path tracer in sixteen SIMD lanes (issue 14's experiment, opt-in
+//! with `LUCENT_LANES=1`): the shading of sixteen paths at a time as lane
+//! loops over `[f32; 16]` arrays, which the AVX-512 copy of the loop
+//! (`isa::LaneIsa`) compiles to one zmm register per array.
+//!
+//! A row's samples are one pool of paths; sixteen of them are in flight at
+//! once, and a lane whose path ends takes the pool's next path at the next
+//! step, so every lane is busy until the pool runs dry (the last fifteen
+//! paths of a row). One step of the sixteen lanes:
+//! 1. per lane: refill an empty lane (camera ray and random stream, as the
+//!    scalar tracer starts them) and trace its ray through the flat tree
+//!    (one ray at a time, the traversal kernel of `lucent-accel`);
+//! 2. in lanes: the hit's triangle fetched by index (gathers) from a table
+//!    built once per render, one 128-byte record per triangle in render
+//!    space (corners, corner normals, geometric normal, magnitude, albedo,
+//!    emitter); the point and the shading normal interpolated; emission
+//!    found and its MIS weight; seven random numbers per lane from sixteen
+//!    PCG32 generators stepped together (64-bit multiplies in lanes);
+//! 3. in lanes, for the lanes at a plain Lambertian vertex: the shading
+//!    frame, the light pick over the emitters' cumulative probabilities, the
+//!    point on the emitter, the BSDF value and density, the shadow ray's
+//!    ends (the ray offsets of `lucent_geom::offset_coord`, branch-free);
+//! 4. per lane: the shadow rays;
+//! 5. in lanes: the MIS-weighted light, the cosine-weighted direction (a
+//!    polynomial sine and cosine after a quarter-turn reduction, not the
+//!    library's), the throughput, the next ray and Russian roulette;
+//! 6. per lane, for the lanes at any other BSDF (mirror, glass, mixtures):
+//!    the scalar tracer's vertex, from the same lane numbers.
+//!
+//! It renders the scalar tracer's estimator, not its bits: each path's
+//! random numbers are drawn in a different order (seven per vertex), the
+//! interaction is interpolated in render space rather than transformed
+//! from object space, and the sine and cosine are a polynomial's; the
+//! image is the same within noise (`tests` compares image means, and
+//! `xtask/mitsuba/compare.sh` the error against Mitsuba's reference). The
+//! lane code has no `unsafe` and no intrinsics: `isa.rs` compiles it once
+//! more inside `#[target_feature]` functions, and each copy gives the same
+//! bits (no contraction into FMA, no reordering), which `tests` checks.
+//!
+//! The lane tracer runs only where it shades every vertex the scene can
+//! make ([`LaneTracer::new`] says `None` otherwise and the caller keeps the
+//! scalar tracer): the flat tree, emissive triangles as the only lights
+//! (no point, directional or environment light, no emission map), no
+//! textures, vertex colours, tangents or alpha tests, no indirect clamp
+//! and no free delta bounces, and at most [`MAX_PICK`] emitters.
+
+#![allow(
+    clippy::needless_range_loop,
+    reason = "lane loops index several arrays by lane: the form the compiler vectorises"
+)]
+
+use crate::flat::FlatBvh;
+use crate::lights::SHADOW_SHORTEN;
+use crate::{RayStats, RenderScene, RenderSettings};
+use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
+use lucent_shading::{Bsdf, Frame, LocalDir, Material};
+use std::f32::consts::{FRAC_1_PI, TAU};
+
+/// Paths in flight at once: one lane each (one zmm register of `f32`).
+pub(crate) const LANES: usize = 16;
+
+/// The most emitters the lane tracer picks among (its pick is a sum of
+/// comparisons over all of them, in lanes).
+pub(crate) const MAX_PICK: usize = 64;
+
+/// Highest survival probability of Russian roulette (the path tracer's).
+const RR_MAX_SURVIVAL: f32 = 0.95;
+
+/// No path in the lane, or no triangle hit, or no emitter.
+const NONE: u32 = u32::MAX;
+
+type Lf = [f32; LANES];
+type Lu = [u32; LANES];
+type Lb = [bool; LANES];
+type L3 = [Lf; 3];
+
+const Z: Lf = [0.0; LANES];
+const Z3: L3 = [Z; 3];
+
+/// One triangle of the flat tree in render space, as the lanes gather it:
+/// 32 words, two cache lines.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Tri {
+    p0: [f32; 3],
+    e1: [f32; 3],
+    e2: [f32; 3],
+    /// Corner normals in render space (not unit; `ng` where the mesh has
+    /// none).
+    n0: [f32; 3],
+    n1: [f32; 3],
+    n2: [f32; 3],
+    /// Unit geometric normal.
+    ng: [f32; 3],
+    /// Largest absolute corner coordinate.
+    magnitude: f32,
+    /// Lambertian albedo (when `diffuse`).
+    albedo: [f32; 3],
+    /// 1 for a plain Lambertian BSDF, else 0 (the scalar vertex).
+    diffuse: u32,
+    /// Index of the material.
+    material: u32,
+    /// Index of the emitter in the light set, or [`NONE`].
+    emitter: u32,
+    _pad: [u32; 2],
+}
+
+/// One emissive triangle, as the lanes gather it.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Emit {
+    p0: [f32; 3],
+    e1: [f32; 3],
+    e2: [f32; 3],
+    n: [f32; 3],
+    radiance: [f32; 3],
+    area: f32,
+    prob: f32,
+    magnitude: f32,
+    /// 1 when both sides emit.
+    two_sided: u32,
+}
+
+/// Counts of the lane tracer's work, for the occupancy figures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LaneCounts {
+    /// Steps of the sixteen lanes.
+    pub steps: u64,
+    /// Lanes that held a path, over all steps.
+    pub live: u64,
+    /// Lanes shaded in the Lambertian lane code, over all steps.
+    pub diffuse: u64,
+    /// Lanes shaded by the scalar vertex (mirror, glass, mixtures).
+    pub scalar: u64,
+}
+
+impl std::ops::Add for LaneCounts {
+    type Output = LaneCounts;
+    fn add(self, o: LaneCounts) -> LaneCounts {
+        LaneCounts {
+            steps: self.steps + o.steps,
+            live: self.live + o.live,
+            diffuse: self.diffuse + o.diffuse,
+            scalar: self.scalar + o.scalar,
+        }
+    }
+}
+
+/// The path tracer over one scene, sixteen paths at a time.
+pub(crate) struct LaneTracer<'a> {
+    scene: &'a RenderScene,
+    flat: &'a FlatBvh,
+    max_depth: u32,
+    rr_depth: u32,
+    /// Per flattened triangle of `flat`.
+    tris: Vec<Tri>,
+    /// Per emitter of the light set.
+    emits: Vec<Emit>,
+    /// The emitters' cumulative selection probabilities.
+    cdf: Vec<f32>,
+    /// Per material, its (untextured) BSDF.
+    bsdfs: Vec<Bsdf>,
+}
+
+/// The state of the sixteen paths.
+struct Paths {
+    /// The pool's index of the lane's path, or [`NONE`].
+    id: Lu,
+    state: [u64; LANES],
+    inc: [u64; LANES],
+    o: L3,
+    d: L3,
+    thr: L3,
+    rad: L3,
+    prev_p: L3,
+    prev_pdf: Lf,
+    prev_delta: Lb,
+    eta_scale: Lf,
+    depth: Lu,
+}
+
+/// One step's hits and vertices in lanes.
+struct Hits {
+    tri: Lu,
+    u: Lf,
+    v: Lf,
+    p: L3,
+    ng: L3,
+    ns: L3,
+    magnitude: Lf,
+    albedo: L3,
+    /// The vertex is shaded in lanes (plain Lambertian, path goes on).
+    diffuse: Lb,
+    /// The vertex is shaded by the scalar code.
+    scalar: Lb,
+    /// The seven numbers of the vertex.
+    rnd: [Lf; 7],
+}
+
+/// The numbers of a vertex in `Hits::rnd`.
+const U_PICK: usize = 0;
+const U_LIGHT: usize = 1;
+const U_LOBE: usize = 3;
+const U_BSDF: usize = 4;
+const U_RR: usize = 6;
+
+impl<'a> LaneTracer<'a> {
+    /// The lane tracer for `scene` and `settings`, or `None` where they
+    /// need something only the scalar tracer does (see the module docs).
+    pub(crate) fn new(scene: &'a RenderScene, settings: &RenderSettings) -> Option<Self> {
+        let f = &scene.features;
+        let lights = &scene.light_set;
+        let plain = f.emissive
+            && !f.alpha_tested
+            && !f.textured
+            && !f.vertex_colors
+            && lights.only_plain_emitters()
+            && lights.emitters().len() <= MAX_PICK
+            && settings.max_depth > 0
+            && settings.clamp_indirect <= 0.0
+            && settings.free_delta_bounces == 0
+            && !scene.materials.iter().any(Material::is_textured)
+            && !scene
+                .instances
+                .iter()
+                .any(|i| i.reads.uvs || i.reads.colors || i.reads.tangents);
+        if !plain {
+            return None;
+        }
+        let flat = scene.flat_bvh()?;
+        let bsdfs: Vec<Bsdf> = scene.materials.iter().map(|m| m.bsdf_at(None, None)).collect();
+        let (cdf, prob) = lights.pick_tables();
+        let emits = lights
+            .emitters()
+            .iter()
+            .zip(prob)
+            .map(|(e, &prob)| Emit {
+                p0: e.p0.to_array(),
+                e1: e.e1.to_array(),
+                e2: e.e2.to_array(),
+                n: e.n.to_array(),
+                radiance: e.radiance.to_array(),
+                area: e.area,
+                prob,
+                magnitude: e.magnitude,
+                two_sided: u32::from(e.two_sided),
+            })
+            .collect();
+        let mut tris = Vec::with_capacity(flat.owners().len());
+        for &(instance, prim) in flat.owners() {
+            tris.push(Self::tri(scene, &bsdfs, instance, prim)?);
+        }
+        Some(Self {
+            scene,
+            flat,
+            max_depth: settings.max_depth,
+            rr_depth: settings.rr_depth.max(1),
+            tris,
+            emits,
+            cdf: cdf.to_vec(),
+            bsdfs,
+        })
+    }
+
+    /// The record of triangle `prim` of `instance`; `None` for a hit the
+    /// scene cannot name.
+    fn tri(scene: &RenderScene, bsdfs: &[Bsdf], instance: u32, prim: u32) -> Option<Tri> {
+        let inst = scene.instances.get(instance as usize)?;
+        let mesh = scene.meshes.get(inst.mesh as usize)?;
+        let idx = *mesh.indices().get(prim as usize)?;
+        let positions = mesh.positions();
+        let [a, b, c] = idx.map(|i| positions.get(i as usize).copied());
+        let corners = inst.corners_to_render([a?, b?, c?]);
+        let to_render = inst.normal_render_from_object;
+        let ngo = to_render * (b? - a?).cross(c? - a?);
+        let ng = ngo.normalize_or_zero();
+        let normals = if inst.reads.normals { mesh.normals() } else { None };
+        let [n0, n1, n2] = match normals {
+            Some(n) => {
+                let get = |i: u32| n.get(i as usize).map(|v| to_render * *v);
+                [get(idx[0]), get(idx[1]), get(idx[2])].map(|v| v.unwrap_or(ng))
+            }
+            None => [ng; 3],
+        };
+        let magnitude = corners.iter().map(|c| c.abs().max_element()).fold(0.0f32, f32::max);
+        let bsdf = bsdfs.get(inst.material as usize)?;
+        let albedo = bsdf.lambertian_albedo();
+        let emitter = scene
+            .light_set
+            .emitter(instance, prim)
+            .filter(|(_, e)| e.radiance != Vec3::ZERO)
+            .map_or(NONE, |(i, _)| i);
+        Some(Tri {
+            p0: corners[0].to_array(),
+            e1: (corners[1] - corners[0]).to_array(),
+            e2: (corners[2] - corners[0]).to_array(),
+            n0: n0.to_array(),
+            n1: n1.to_array(),
+            n2: n2.to_array(),
+            ng: ng.to_array(),
+            magnitude,
+            albedo: albedo.unwrap_or(Vec3::ZERO).to_array(),
+            diffuse: u32::from(albedo.is_some() && ng != Vec3::ZERO),
+            material: inst.material,
+            emitter,
+            _pad: [0; 2],
+        })
+    }
+
+    /// Traces `out.len()` paths, path `k` from `start(k)` (its camera ray
+    /// and random stream), and writes each one's radiance to `out[k]`.
+    /// Always inlined: the caller's copy of the loop (`isa::LaneIsa`)
+    /// compiles it.
+    #[inline(always)]
+    pub(crate) fn trace(
+        &self,
+        start: impl Fn(usize) -> (Ray, Pcg32),
+        out: &mut [Vec3],
+        stats: &mut RayStats,
+        counts: &mut LaneCounts,
+    ) {
+        let mut paths = Paths {
+            id: [NONE; LANES],
+            state: [0; LANES],
+            inc: [0; LANES],
+            o: Z3,
+            d: Z3,
+            thr: Z3,
+            rad: Z3,
+            prev_p: Z3,
+            prev_pdf: Z,
+            prev_delta: [true; LANES],
+            eta_scale: Z,
+            depth: [0; LANES],
+        };
+        let mut h = Hits {
+            tri: [NONE; LANES],
+            u: Z,
+            v: Z,
+            p: Z3,
+            ng: Z3,
+            ns: Z3,
+            magnitude: Z,
+            albedo: Z3,
+            diffuse: [false; LANES],
+            scalar: [false; LANES],
+            rnd: [Z; 7],
+        };
+        let n = out.len().min(NONE as usize);
+        let mut next = 0usize;
+        loop {
+            // 1. Refill, then trace.
+            let mut live = 0u64;
+            for i in 0..LANES {
+                if paths.id[i] == NONE && next < n {
+                    let (ray, rng) = start(next);
+                    let (state, inc) = rng.to_parts();
+                    paths.id[i] = next as u32;
+                    paths.state[i] = state;
+                    paths.inc[i] = inc;
+                    for c in 0..3 {
+                        paths.o[c][i] = ray.origin[c];
+                        paths.d[c][i] = ray.dir[c];
+                        paths.thr[c][i] = 1.0;
+                        paths.rad[c][i] = 0.0;
+                        paths.prev_p[c][i] = ray.origin[c];
+                    }
+                    paths.prev_pdf[i] = 0.0;
+                    paths.prev_delta[i] = true;
+                    paths.eta_scale[i] = 1.0;
+                    paths.depth[i] = 0;
+                    stats.primary += 1;
+                    next += 1;
+                }
+                h.tri[i] = NONE;
+                if paths.id[i] != NONE {
+                    live += 1;
+                    let ray = Ray::new(
+                        Vec3::new(paths.o[0][i], paths.o[1][i], paths.o[2][i]),
+                        Vec3::new(paths.d[0][i], paths.d[1][i], paths.d[2][i]),
+                    );
+                    if let Some(hit) = self.flat.mesh_bvh().intersect(&ray, f32::INFINITY) {
+                        h.tri[i] = hit.prim;
+                        h.u[i] = hit.u;
+                        h.v[i] = hit.v;
+                    }
+                }
+            }
+            if live == 0 {
+                break;
+            }
+            counts.steps += 1;
+            counts.live += live;
+            // 2. The vertices, emission and the numbers, in lanes.
+            self.vertices(&mut paths, &mut h);
+            let mut n_diffuse = 0;
+            let mut n_scalar = 0;
+            for i in 0..LANES {
+                n_diffuse += u64::from(h.diffuse[i]);
+                n_scalar += u64::from(h.scalar[i]);
+            }
+            counts.diffuse += n_diffuse;
+            counts.scalar += n_scalar;
+            // 3 to 5. The Lambertian lanes.
+            let mut go_on = [false; LANES];
+            if n_diffuse > 0 {
+                self.shade_diffuse(&mut paths, &h, &mut go_on, stats);
+            }
+            // 6. Every other BSDF, one lane at a time.
+            if n_scalar > 0 {
+                for i in 0..LANES {
+                    if h.scalar[i] {
+                        go_on[i] = self.scalar_vertex(&mut paths, &h, i, stats);
+                    }
+                }
+            }
+            // Paths that end hand their radiance over.
+            for i in 0..LANES {
+                if paths.id[i] != NONE && !go_on[i] {
+                    if let Some(slot) = out.get_mut(paths.id[i] as usize) {
+                        *slot = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
+                    }
+                    paths.id[i] = NONE;
+                }
+            }
+        }
+    }
+
+    /// Step 2: the hits' interactions (gathered from the triangle table),
+    /// the emission they find, the depth limit and the vertex's numbers.
+    #[inline(always)]
+    fn vertices(&self, paths: &mut Paths, h: &mut Hits) {
+        let tris = &self.tris[..];
+        let emits = &self.emits[..];
+        let (Some(t_last), Some(e_last)) = (tris.len().checked_sub(1), emits.len().checked_sub(1)) else {
+            h.diffuse = [false; LANES];
+            h.scalar = [false; LANES];
+            return;
+        };
+        for i in 0..LANES {
+            let hit = h.tri[i] != NONE && paths.id[i] != NONE;
+            let t = &tris[(h.tri[i] as usize).min(t_last)];
+            let (u, v) = (h.u[i], h.v[i]);
+            let w = 1.0 - u - v;
+            let mut ns = [0.0f32; 3];
+            for c in 0..3 {
+                h.p[c][i] = t.p0[c] + t.e1[c] * u + t.e2[c] * v;
+                h.ng[c][i] = t.ng[c];
+                ns[c] = t.n0[c] * w + t.n1[c] * u + t.n2[c] * v;
+            }
+            let l2 = ns[0] * ns[0] + ns[1] * ns[1] + ns[2] * ns[2];
+            // A degenerate interpolated normal falls back to the geometric one.
+            let ok = l2 > 0.0 && l2 <= f32::MAX;
+            let r = 1.0 / l2.sqrt();
+            for c in 0..3 {
+                h.ns[c][i] = if ok { ns[c] * r } else { t.ng[c] };
+                h.albedo[c][i] = t.albedo[c];
+            }
+            h.magnitude[i] = t.magnitude;
+            // Emission found by the path, weighted against light sampling.
+            let e = &emits[(t.emitter as usize).min(e_last)];
+            let wo_dot = -(e.n[0] * paths.d[0][i] + e.n[1] * paths.d[1][i] + e.n[2] * paths.d[2][i]);
+            let emits_here = hit && t.emitter != NONE && (e.two_sided != 0 || wo_dot > 0.0);
+            let mut dd = [0.0f32; 3];
+            for c in 0..3 {
+                dd[c] = h.p[c][i] - paths.prev_p[c][i];
+            }
+            let dist2 = dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2];
+            let cos = ((e.n[0] * dd[0] + e.n[1] * dd[1] + e.n[2] * dd[2]) / dist2.sqrt()).abs();
+            let pdf = e.prob * dist2 / (e.area * cos);
+            let pdf = if e.prob > 0.0 && pdf > 0.0 && pdf <= f32::MAX {
+                pdf
+            } else {
+                0.0
+            };
+            let mis = if paths.prev_delta[i] {
+                1.0
+            } else {
+                power_heuristic(paths.prev_pdf[i], pdf)
+            };
+            for c in 0..3 {
+                let add = paths.thr[c][i] * e.radiance[c] * mis;
+                paths.rad[c][i] += if emits_here { add } else { 0.0 };
+            }
+            let goes_on = hit && paths.depth[i] + 1 < self.max_depth;
+            h.diffuse[i] = goes_on && t.diffuse != 0;
+            h.scalar[i] = goes_on && t.diffuse == 0;
+        }
+        // The vertex's seven numbers, sixteen generators stepped together.
+        for k in 0..7 {
+            for i in 0..LANES {
+                let old = paths.state[i];
+                paths.state[i] = old.wrapping_mul(PCG_MULT).wrapping_add(paths.inc[i]);
+                let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+                let rot = (old >> 59) as u32;
+                let x = xorshifted.rotate_right(rot);
+                h.rnd[k][i] = ((x >> 8) as i32) as f32 * (1.0 / 16_777_216.0);
+            }
+        }
+    }
+
+    /// Steps 3 to 5 for the lanes `h.diffuse`; sets `go_on` for the paths
+    /// that continue.
+    #[inline(always)]
+    fn shade_diffuse(&self, paths: &mut Paths, h: &Hits, go_on: &mut Lb, stats: &mut RayStats) {
+        let emits = &self.emits[..];
+        let cdf = &self.cdf[..];
+        let (Some(e_last), Some(c_last)) = (emits.len().checked_sub(1), cdf.len().checked_sub(1)) else {
+            return;
+        };
+        // The frame (`Frame::from_normal`), `wo` in it, the light sample,
+        // the BSDF towards it and the shadow ray's ends.
+        let mut t = Z3;
+        let mut b = Z3;
+        let mut wo_z = Z;
+        let mut live = [false; LANES];
+        let mut light = Z3; // throughput x f x radiance x weight / pdf
+        let mut so = Z3; // shadow ray origin
+        let mut sd = Z3; // its unit direction
+        let mut st = Z; // its length
+        let mut shadow = [false; LANES];
+        // The light pick: the first cumulative probability above `u`,
+        // counted over the emitters (at most `MAX_PICK`) in lanes.
+        let mut pick = [0u32; LANES];
+        for &c in cdf {
+            for i in 0..LANES {
+                pick[i] += u32::from(c <= h.rnd[U_PICK][i]);
+            }
+        }
+        for i in 0..LANES {
+            let (nx, ny, nz) = (h.ns[0][i], h.ns[1][i], h.ns[2][i]);
+            let sign = 1f32.copysign(nz);
+            let a = -1.0 / (sign + nz);
+            let xy = nx * ny * a;
+            t[0][i] = 1.0 + sign * nx * nx * a;
+            t[1][i] = sign * xy;
+            t[2][i] = -sign * nx;
+            b[0][i] = xy;
+            b[1][i] = sign + ny * ny * a;
+            b[2][i] = -ny;
+            let (dx, dy, dz) = (-paths.d[0][i], -paths.d[1][i], -paths.d[2][i]);
+            let lz = nx * dx + ny * dy + nz * dz;
+            wo_z[i] = lz;
+            live[i] = h.diffuse[i] && lz != 0.0;
+            let e = &emits[(pick[i] as usize).min(c_last).min(e_last)];
+            let s = h.rnd[U_LIGHT][i].sqrt();
+            let (b1, b2) = (1.0 - s, h.rnd[U_LIGHT + 1][i] * s);
+            let mut point = [0.0f32; 3];
+            let mut d = [0.0f32; 3];
+            for c in 0..3 {
+                point[c] = e.p0[c] + e.e1[c] * b1 + e.e2[c] * b2;
+                d[c] = point[c] - h.p[c][i];
+            }
+            let dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let dist = dist2.sqrt();
+            let wi = [d[0] / dist, d[1] / dist, d[2] / dist];
+            let nd = e.n[0] * wi[0] + e.n[1] * wi[1] + e.n[2] * wi[2];
+            let cos = if e.two_sided != 0 { nd.abs() } else { -nd };
+            let light_pdf = e.prob * dist2 / (e.area * cos);
+            let ok = live[i] && e.prob > 0.0 && dist > 0.0 && dist <= f32::MAX && cos > 0.0;
+            // The Lambertian value and density towards `wi`.
+            let z = nx * wi[0] + ny * wi[1] + nz * wi[2];
+            let dens = if lz * z > 0.0 { z.abs() * FRAC_1_PI } else { 0.0 };
+            let w = power_heuristic(light_pdf, dens);
+            let k = w / light_pdf;
+            let mut any = false;
+            for c in 0..3 {
+                let f = h.albedo[c][i] * dens;
+                any |= f != 0.0;
+                light[c][i] = paths.thr[c][i] * f * e.radiance[c] * k;
+            }
+            shadow[i] = ok && any;
+            // The shadow ray: from the point pushed off to the light's
+            // side, towards the point on the light pushed off towards it.
+            let out = wi[0] * h.ng[0][i] + wi[1] * h.ng[1][i] + wi[2] * h.ng[2][i] >= 0.0;
+            let mut origin = [0.0f32; 3];
+            for c in 0..3 {
+                let n = if out { h.ng[c][i] } else { -h.ng[c][i] };
+                origin[c] = offset_coord(h.p[c][i], n, h.magnitude[i]);
+            }
+            let towards =
+                e.n[0] * (origin[0] - point[0]) + e.n[1] * (origin[1] - point[1]) + e.n[2] * (origin[2] - point[2])
+                    >= 0.0;
+            let mut sdv = [0.0f32; 3];
+            for c in 0..3 {
+                let n = if towards { e.n[c] } else { -e.n[c] };
+                sdv[c] = offset_coord(point[c], n, e.magnitude) - origin[c];
+                so[c][i] = origin[c];
+            }
+            let sl = (sdv[0] * sdv[0] + sdv[1] * sdv[1] + sdv[2] * sdv[2]).sqrt();
+            for c in 0..3 {
+                sd[c][i] = sdv[c] / sl;
+            }
+            st[i] = sl * (1.0 - SHADOW_SHORTEN);
+            shadow[i] = shadow[i] && sl > 0.0 && sl <= f32::MAX;
+        }
+        // 4. The shadow rays, one at a time.
+        let mut visible = [false; LANES];
+        for i in 0..LANES {
+            if shadow[i] {
+                stats.shadow += 1;
+                let ray = Ray::new(
+                    Vec3::new(so[0][i], so[1][i], so[2][i]),
+                    Vec3::new(sd[0][i], sd[1][i], sd[2][i]),
+                );
+                visible[i] = !self.flat.occluded(&ray, st[i]);
+            }
+        }
+        // 5. The light's contribution, the cosine-weighted next direction,
+        // the throughput, the next ray and Russian roulette.
+        for i in 0..LANES {
+            for c in 0..3 {
+                paths.rad[c][i] += if visible[i] { light[c][i] } else { 0.0 };
+            }
+            let r = h.rnd[U_BSDF][i].sqrt();
+            let (cos_phi, sin_phi) = sincos_turn(h.rnd[U_BSDF + 1][i]);
+            let (x, y) = (r * cos_phi, r * sin_phi);
+            let z = (1.0 - r * r).max(0.0).sqrt();
+            let z = if wo_z[i] < 0.0 { -z } else { z };
+            let l2 = x * x + y * y + z * z;
+            let k = 1.0 / l2.sqrt();
+            let (lx, ly, lz) = (x * k, y * k, z * k);
+            let pdf = lz.abs() * FRAC_1_PI;
+            let ok = live[i] && l2 > 0.0 && l2 <= f32::MAX && pdf > 0.0;
+            let mut m = 0.0f32;
+            let mut wi = [0.0f32; 3];
+            for c in 0..3 {
+                let tc = paths.thr[c][i] * h.albedo[c][i];
+                paths.thr[c][i] = if ok { tc } else { paths.thr[c][i] };
+                m = m.max(tc);
+                wi[c] = t[c][i] * lx + b[c][i] * ly + h.ns[c][i] * lz;
+            }
+            let out = wi[0] * h.ng[0][i] + wi[1] * h.ng[1][i] + wi[2] * h.ng[2][i] >= 0.0;
+            for c in 0..3 {
+                let n = if out { h.ng[c][i] } else { -h.ng[c][i] };
+                let origin = offset_coord(h.p[c][i], n, h.magnitude[i]);
+                paths.o[c][i] = if ok { origin } else { paths.o[c][i] };
+                paths.d[c][i] = if ok { wi[c] } else { paths.d[c][i] };
+                paths.prev_p[c][i] = if ok { h.p[c][i] } else { paths.prev_p[c][i] };
+            }
+            let depth = paths.depth[i] + 1;
+            let survive = (m * paths.eta_scale[i]).min(RR_MAX_SURVIVAL);
+            let roulette = depth >= self.rr_depth;
+            let lives = !roulette || h.rnd[U_RR][i] < survive;
+            paths.prev_pdf[i] = if ok { pdf } else { paths.prev_pdf[i] };
+            paths.prev_delta[i] = paths.prev_delta[i] && !ok;
+            paths.depth[i] = if ok { depth } else { paths.depth[i] };
+            let scale = if ok && roulette { survive } else { 1.0 };
+            for c in 0..3 {
+                paths.thr[c][i] /= scale;
+            }
+            go_on[i] = if h.diffuse[i] { ok && m > 0.0 && lives } else { go_on[i] };
+        }
+        let mut bounces = 0;
+        for i in 0..LANES {
+            bounces += u64::from(live[i]);
+        }
+        stats.reflection += bounces;
+    }
+
+    /// Step 6 for lane `i`: the scalar tracer's vertex for any BSDF, from
+    /// the lane's numbers; whether the path goes on.
+    #[inline(never)]
+    fn scalar_vertex(&self, paths: &mut Paths, h: &Hits, i: usize, stats: &mut RayStats) -> bool {
+        let lights = &self.scene.light_set;
+        let get = |a: &L3| Vec3A::new(a[0][i], a[1][i], a[2][i]);
+        let Some(bsdf) = self
+            .tris
+            .get(h.tri[i] as usize)
+            .and_then(|t| self.bsdfs.get(t.material as usize).map(|b| (b, t.material)))
+        else {
+            return false;
+        };
+        let (bsdf, material) = bsdf;
+        let dir = Vec3::from(get(&paths.d));
+        let mut throughput = get(&paths.thr);
+        let frame = Frame::from_normal(get(&h.ns).into());
+        let wo = frame.to_local(-dir);
+        let Some(wo_unit) = LocalDir::new(wo) else {
+            return false;
+        };
+        let (p, ng, magnitude) = (get(&h.p), get(&h.ng), h.magnitude[i]);
+        let rnd = |k: usize| h.rnd[k][i];
+        if !bsdf.is_delta()
+            && let Some(ls) = lights.sample(p, rnd(U_PICK), Vec2::new(rnd(U_LIGHT), rnd(U_LIGHT + 1)))
+            && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
+        {
+            let (f, bsdf_pdf) = bsdf.eval_pdf(wo_unit, wi);
+            if f != Vec3::ZERO {
+                stats.shadow += 1;
+                let origin = offset_ray_origin_a(p, if ls.wi.dot(ng) >= 0.0 { ng } else { -ng }, magnitude);
+                if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
+                    && !self.flat.occluded(&shadow_ray, t_max)
+                {
+                    let w = power_heuristic(ls.pdf, bsdf_pdf);
+                    let add = throughput * Vec3A::from(f) * Vec3A::from(ls.value) * (w / ls.pdf);
+                    for c in 0..3 {
+                        paths.rad[c][i] += add[c];
+                    }
+                }
+            }
+        }
+        let Some(bs) = bsdf.sample_local(wo_unit, rnd(U_LOBE), Vec2::new(rnd(U_BSDF), rnd(U_BSDF + 1))) else {
+            return false;
+        };
+        throughput *= Vec3A::from(bs.weight);
+        if throughput.max_element() <= 0.0 {
+            return false;
+        }
+        let wi = frame.to_world(bs.wi);
+        if bs.wi.z * wo.z < 0.0 {
+            let ior = self.scene.materials.get(material as usize).map_or(1.0, |m| m.ior);
+            let eta = if wo.z > 0.0 { ior } else { ior.recip() };
+            if eta.is_finite() && eta > 0.0 {
+                paths.eta_scale[i] *= eta * eta;
+            }
+            stats.refraction += 1;
+        } else {
+            stats.reflection += 1;
+        }
+        let out = Vec3A::from(wi).dot(ng) >= 0.0;
+        let origin = offset_ray_origin_a(p, if out { ng } else { -ng }, magnitude);
+        let depth = paths.depth[i] + 1;
+        paths.depth[i] = depth;
+        paths.prev_pdf[i] = bs.pdf;
+        paths.prev_delta[i] = bs.delta;
+        for c in 0..3 {
+            paths.o[c][i] = origin[c];
+            paths.d[c][i] = wi[c];
+            paths.prev_p[c][i] = p[c];
+        }
+        if depth >= self.rr_depth {
+            let survive = (throughput.max_element() * paths.eta_scale[i]).min(RR_MAX_SURVIVAL);
+            if rnd(U_RR) >= survive {
+                return false;
+            }
+            throughput /= survive;
+        }
+        for c in 0..3 {
+            paths.thr[c][i] = throughput[c];
+        }
+        true
+    }
+}
+
+/// PCG32's multiplier (`lucent_geom::Pcg32`'s).
+const PCG_MULT: u64 = 6_364_136_223_846_793_005;
+
+/// `(cos 2 pi u, sin 2 pi u)` for `u` in `[0, 1)`, without branches: the
+/// nearest quarter turn `q`, the rest `a` in `[-pi/4, pi/4]` by Taylor
+/// polynomials of degree 8 and 7 (errors below 3e-7), then the quarter
+/// turn's swap and signs.
+#[inline(always)]
+fn sincos_turn(u: f32) -> (f32, f32) {
+    // The nearest quarter turn, rounded by the float adder (exact for
+    // `4 u` in `[0, 4]`), kept as a float so that the lanes stay floats.
+    const ROUND: f32 = 12_582_912.0;
+    let q = (u * 4.0 + ROUND) - ROUND;
+    let a = (u - q * 0.25) * TAU;
+    let a2 = a * a;
+    let s = a * (1.0 + a2 * (-1.0 / 6.0 + a2 * (1.0 / 120.0 + a2 * (-1.0 / 5040.0))));
+    let c = 1.0 + a2 * (-0.5 + a2 * (1.0 / 24.0 + a2 * (-1.0 / 720.0 + a2 * (1.0 / 40320.0))));
+    // Quarter turns 0 and 4: (c, s); 1: (-s, c); 2: (-c, -s); 3: (s, -c).
+    let odd = q == 1.0 || q == 3.0;
+    let (x, y) = if odd { (s, c) } else { (c, s) };
+    let x = if q == 1.0 || q == 2.0 { -x } else { x };
+    let y = if q == 2.0 || q == 3.0 { -y } else { y };
+    (x, y)
+}
+
+/// Veach's power heuristic, as the path tracer has it.
+#[inline(always)]
+fn power_heuristic(pdf: f32, other: f32) -> f32 {
+    let (a, b) = (pdf * pdf, other * other);
+    if a + b > 0.0 && a <= f32::MAX { a / (a + b) } else { 1.0 }
+}
+
+/// Whether the caller asked for the lane tracer: `LUCENT_LANES` in the
+/// environment, `1` for the AVX-512 copy (where the processor has it),
+/// `avx2` or `baseline` to force another copy (for instruction counts under
+/// callgrind, which hides AVX-512, and for comparisons).
+pub(crate) fn requested() -> Option<String> {
+    std::env::var("LUCENT_LANES").ok().filter(|v| !v.is_empty() && v != "0")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_polynomial_sine_and_cosine_are_within_a_few_ulps_of_the_library() {
+        let mut worst = 0.0f32;
+        for k in 0..(1u32 << 16) {
+            let u = k as f32 / 65536.0;
+            let (c, s) = sincos_turn(u);
+            let phi = TAU * u;
+            worst = worst.max((c - phi.cos()).abs()).max((s - phi.sin()).abs());
+            assert!(c * c + s * s > 0.999_998 && c * c + s * s < 1.000_002, "{u}");
+        }
+        assert!(worst < 1e-6, "{worst}");
+    }
+}
