@@ -425,7 +425,7 @@ fn trace_rows(
 /// pixel adds its samples in sample order, so the sums do not depend on
 /// the thread count.
 #[allow(clippy::too_many_arguments, reason = "trace_rows' arguments and the lane tracer")]
-fn trace_rows_lanes(
+pub(crate) fn trace_rows_lanes(
     lane_isa: LaneIsa,
     tracer: &LaneTracer<'_>,
     scene: &RenderScene,
