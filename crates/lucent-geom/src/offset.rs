@@ -232,6 +232,30 @@ mod tests {
     }
 
     #[test]
+    fn one_coordinate_at_a_time_is_within_one_ulp_of_the_offset() {
+        let mut rng = crate::Pcg32::new(9, 3);
+        for _ in 0..50_000 {
+            let e = (rng.next_f32() * 60.0 - 30.0).exp2();
+            let p = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5) * e;
+            let n = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5).normalize();
+            let magnitude = p.abs().max_element() * (1.0 + rng.next_f32());
+            let q = Vec3::from(offset_ray_origin_a(Vec3A::from(p), Vec3A::from(n), magnitude));
+            for axis in 0..3 {
+                let c = offset_coord(p[axis], n[axis], magnitude);
+                // Rounded rather than truncated ulp counts: one ulp apart
+                // at most, and never on the other side of `p`.
+                let ulps = (c.to_bits() as i64 - q[axis].to_bits() as i64).abs();
+                assert!(
+                    ulps <= 1,
+                    "{p:?} {n:?} {magnitude} axis {axis}: {c} against {}",
+                    q[axis]
+                );
+                assert!((c - p[axis]) * n[axis] >= 0.0, "{p:?} {n:?} axis {axis}");
+            }
+        }
+    }
+
+    #[test]
     fn moves_to_the_normal_side_at_every_scale() {
         let n = Vec3::new(0.6, -0.8, 0.0);
         for scale in [1e-6f32, 1e-3, 0.5, 1.0, 1e3, 1e6, 1e30] {
