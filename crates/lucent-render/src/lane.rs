@@ -53,7 +53,7 @@ use crate::flat::FlatBvh;
 use crate::lights::SHADOW_SHORTEN;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
-use lucent_shading::{Bsdf, Frame, LocalDir, Material};
+use lucent_shading::{Bsdf, DeltaLobe, Frame, LocalDir, Material};
 use std::f32::consts::{FRAC_1_PI, TAU};
 
 /// Paths in flight at once: one lane each (one zmm register of `f32`).
@@ -94,16 +94,29 @@ struct Tri {
     ng: [f32; 3],
     /// Largest absolute corner coordinate.
     magnitude: f32,
-    /// Lambertian albedo (when `diffuse`).
+    /// Lambertian albedo, mirror reflectance or dielectric tint.
     albedo: [f32; 3],
-    /// 1 for a plain Lambertian BSDF, else 0 (the scalar vertex).
-    diffuse: u32,
+    /// Which lane code shades the BSDF: [`KIND_DIFFUSE`] and the others.
+    kind: u32,
     /// Index of the material.
     material: u32,
     /// Index of the emitter in the light set, or [`NONE`].
     emitter: u32,
-    _pad: [u32; 2],
+    /// A dielectric's index inside over outside.
+    eta: f32,
+    _pad: u32,
 }
+
+/// A plain Lambertian BSDF.
+const KIND_DIFFUSE: u32 = 0;
+/// A smooth mirror whose Fresnel term is 1.
+const KIND_MIRROR: u32 = 1;
+/// A smooth dielectric.
+const KIND_GLASS: u32 = 2;
+/// No lobe at all: the path ends (after the emission it finds).
+const KIND_BLACK: u32 = 3;
+/// Anything else: the scalar vertex.
+const KIND_OTHER: u32 = 4;
 
 /// One emissive triangle, as the lanes gather it.
 #[derive(Clone, Copy, Debug)]
@@ -130,7 +143,9 @@ pub struct LaneCounts {
     pub live: u64,
     /// Lanes shaded in the Lambertian lane code, over all steps.
     pub diffuse: u64,
-    /// Lanes shaded by the scalar vertex (mirror, glass, mixtures).
+    /// Lanes at a mirror or glass vertex, shaded in lanes.
+    pub delta: u64,
+    /// Lanes shaded by the scalar vertex (other mixtures).
     pub scalar: u64,
 }
 
@@ -141,6 +156,7 @@ impl std::ops::Add for LaneCounts {
             steps: self.steps + o.steps,
             live: self.live + o.live,
             diffuse: self.diffuse + o.diffuse,
+            delta: self.delta + o.delta,
             scalar: self.scalar + o.scalar,
         }
     }
@@ -191,6 +207,11 @@ struct Hits {
     albedo: L3,
     /// The vertex is shaded in lanes (plain Lambertian, path goes on).
     diffuse: Lb,
+    /// The vertex is a mirror or glass one, shaded in lanes.
+    delta: Lb,
+    /// Of those, the glass ones, and their index.
+    glass: Lb,
+    eta: Lf,
     /// The vertex is shaded by the scalar code.
     scalar: Lb,
     /// The seven numbers of the vertex.
@@ -284,7 +305,13 @@ impl<'a> LaneTracer<'a> {
         };
         let magnitude = corners.iter().map(|c| c.abs().max_element()).fold(0.0f32, f32::max);
         let bsdf = bsdfs.get(inst.material as usize)?;
-        let albedo = bsdf.lambertian_albedo();
+        let (kind, albedo, eta) = match (bsdf.lambertian_albedo(), bsdf.single_delta_lobe()) {
+            (Some(albedo), _) if ng != Vec3::ZERO => (KIND_DIFFUSE, albedo, 1.0),
+            (_, Some(DeltaLobe::Mirror(r))) if ng != Vec3::ZERO => (KIND_MIRROR, r, 1.0),
+            (_, Some(DeltaLobe::Dielectric(tint, eta))) if ng != Vec3::ZERO => (KIND_GLASS, tint, eta),
+            _ if bsdf.is_delta() && bsdf.albedo() == Vec3::ZERO => (KIND_BLACK, Vec3::ZERO, 1.0),
+            _ => (KIND_OTHER, Vec3::ZERO, 1.0),
+        };
         let emitter = scene
             .light_set
             .emitter(instance, prim)
@@ -299,11 +326,12 @@ impl<'a> LaneTracer<'a> {
             n2: n2.to_array(),
             ng: ng.to_array(),
             magnitude,
-            albedo: albedo.unwrap_or(Vec3::ZERO).to_array(),
-            diffuse: u32::from(albedo.is_some() && ng != Vec3::ZERO),
+            albedo: albedo.to_array(),
+            kind,
             material: inst.material,
             emitter,
-            _pad: [0; 2],
+            eta,
+            _pad: 0,
         })
     }
 
@@ -343,6 +371,9 @@ impl<'a> LaneTracer<'a> {
             magnitude: Z,
             albedo: Z3,
             diffuse: [false; LANES],
+            delta: [false; LANES],
+            glass: [false; LANES],
+            eta: Z,
             scalar: [false; LANES],
             rnd: [Z; 7],
         };
@@ -394,17 +425,24 @@ impl<'a> LaneTracer<'a> {
             // 2. The vertices, emission and the numbers, in lanes.
             self.vertices(&mut paths, &mut h);
             let mut n_diffuse = 0;
+            let mut n_delta = 0;
             let mut n_scalar = 0;
             for i in 0..LANES {
                 n_diffuse += u64::from(h.diffuse[i]);
+                n_delta += u64::from(h.delta[i]);
                 n_scalar += u64::from(h.scalar[i]);
             }
             counts.diffuse += n_diffuse;
+            counts.delta += n_delta;
             counts.scalar += n_scalar;
             // 3 to 5. The Lambertian lanes.
             let mut go_on = [false; LANES];
             if n_diffuse > 0 {
                 self.shade_diffuse(&mut paths, &h, &mut go_on, stats);
+            }
+            // Mirrors and glass.
+            if n_delta > 0 {
+                self.shade_delta(&mut paths, &h, &mut go_on, stats);
             }
             // 6. Every other BSDF, one lane at a time.
             if n_scalar > 0 {
@@ -483,8 +521,11 @@ impl<'a> LaneTracer<'a> {
                 paths.rad[c][i] += if emits_here { add } else { 0.0 };
             }
             let goes_on = hit && paths.depth[i] + 1 < self.max_depth;
-            h.diffuse[i] = goes_on && t.diffuse != 0;
-            h.scalar[i] = goes_on && t.diffuse == 0;
+            h.diffuse[i] = goes_on && t.kind == KIND_DIFFUSE;
+            h.delta[i] = goes_on && (t.kind == KIND_MIRROR || t.kind == KIND_GLASS);
+            h.glass[i] = t.kind == KIND_GLASS;
+            h.eta[i] = t.eta;
+            h.scalar[i] = goes_on && t.kind == KIND_OTHER;
         }
         // The vertex's seven numbers, sixteen generators stepped together.
         for k in 0..7 {
@@ -658,6 +699,96 @@ impl<'a> LaneTracer<'a> {
         stats.reflection += bounces;
     }
 
+    /// The lanes `h.delta`: a mirror reflects; glass reflects with the
+    /// Fresnel probability and refracts otherwise (`Bsdf`'s dielectric
+    /// sample, in world space about the shading normal); then the
+    /// throughput, the next ray and Russian roulette as for a Lambertian
+    /// vertex. Sets `go_on` for those lanes.
+    #[inline(always)]
+    fn shade_delta(&self, paths: &mut Paths, h: &Hits, go_on: &mut Lb, stats: &mut RayStats) {
+        let mut refracted = 0u64;
+        let mut reflected = 0u64;
+        for i in 0..LANES {
+            let (nx, ny, nz) = (h.ns[0][i], h.ns[1][i], h.ns[2][i]);
+            let (dx, dy, dz) = (paths.d[0][i], paths.d[1][i], paths.d[2][i]);
+            // `wo.z`: the cosine of the way back with the shading normal.
+            let cos_o = -(nx * dx + ny * dy + nz * dz);
+            let outside = cos_o > 0.0;
+            let eta = h.eta[i];
+            let eta_ti = if outside { eta } else { 1.0 / eta };
+            let r = fresnel_dielectric(cos_o, eta_ti);
+            let glass = h.glass[i];
+            let reflect = !glass || h.rnd[U_LOBE][i] < r;
+            // Refraction (`optics::refract` of `-wo` about the normal on
+            // `wo`'s side, by `1 / eta_ti`).
+            let e = 1.0 / eta_ti;
+            let cos_i = cos_o.abs();
+            let sin2_t = e * e * (1.0 - cos_i * cos_i).max(0.0);
+            let cos2_t = (1.0 - e) * (1.0 + e) + (e * cos_i) * (e * cos_i);
+            let cos_t = cos2_t.max(0.0).sqrt();
+            let side = if outside { 1.0 } else { -1.0 };
+            let k = e * cos_i - cos_t;
+            let mut wi = [0.0f32; 3];
+            let n = [nx, ny, nz];
+            let d = [dx, dy, dz];
+            for c in 0..3 {
+                // Mirror: d + 2 cos_o n; refraction: e d + k (side n).
+                let mirror = d[c] + 2.0 * cos_o * n[c];
+                let through = e * d[c] + k * side * n[c];
+                wi[c] = if reflect { mirror } else { through };
+            }
+            let l2 = wi[0] * wi[0] + wi[1] * wi[1] + wi[2] * wi[2];
+            let inv = 1.0 / l2.sqrt();
+            let cos_n = (wi[0] * nx + wi[1] * ny + wi[2] * nz) * inv;
+            // A refracted direction crosses the surface, a reflected one
+            // stays on `wo`'s side; total internal reflection has `r = 1`.
+            let crossed = cos_n * cos_o < 0.0;
+            let ok = h.delta[i] && cos_o != 0.0 && l2 > 0.0 && l2 <= f32::MAX && (reflect || (sin2_t < 1.0 && crossed));
+            let scale = if reflect { 1.0 } else { 1.0 / (eta_ti * eta_ti) };
+            let mut m = 0.0f32;
+            for c in 0..3 {
+                let tc = paths.thr[c][i] * (h.albedo[c][i] * scale);
+                paths.thr[c][i] = if ok { tc } else { paths.thr[c][i] };
+                m = m.max(tc);
+                wi[c] *= inv;
+            }
+            let eta_scale = if ok && !reflect && eta_ti.is_finite() && eta_ti > 0.0 {
+                paths.eta_scale[i] * (eta_ti * eta_ti)
+            } else {
+                paths.eta_scale[i]
+            };
+            paths.eta_scale[i] = eta_scale;
+            let out = wi[0] * h.ng[0][i] + wi[1] * h.ng[1][i] + wi[2] * h.ng[2][i] >= 0.0;
+            for c in 0..3 {
+                let n = if out { h.ng[c][i] } else { -h.ng[c][i] };
+                let origin = offset_coord(h.p[c][i], n, h.magnitude[i]);
+                paths.o[c][i] = if ok { origin } else { paths.o[c][i] };
+                paths.d[c][i] = if ok { wi[c] } else { paths.d[c][i] };
+                paths.prev_p[c][i] = if ok { h.p[c][i] } else { paths.prev_p[c][i] };
+            }
+            let depth = paths.depth[i] + 1;
+            let survive = (m * eta_scale).min(RR_MAX_SURVIVAL);
+            let roulette = depth >= self.rr_depth;
+            let lives = !roulette || h.rnd[U_RR][i] < survive;
+            paths.prev_pdf[i] = if ok {
+                if reflect { r } else { 1.0 - r }
+            } else {
+                paths.prev_pdf[i]
+            };
+            paths.prev_delta[i] = paths.prev_delta[i] || ok;
+            paths.depth[i] = if ok { depth } else { paths.depth[i] };
+            let scale = if ok && roulette { survive } else { 1.0 };
+            for c in 0..3 {
+                paths.thr[c][i] /= scale;
+            }
+            go_on[i] = if h.delta[i] { ok && m > 0.0 && lives } else { go_on[i] };
+            refracted += u64::from(ok && !reflect);
+            reflected += u64::from(ok && reflect);
+        }
+        stats.refraction += refracted;
+        stats.reflection += reflected;
+    }
+
     /// Step 6 for lane `i`: the scalar tracer's vertex for any BSDF, from
     /// the lane's numbers; whether the path goes on.
     #[inline(never)]
@@ -766,6 +897,37 @@ fn sincos_turn(u: f32) -> (f32, f32) {
     let x = if q == 1.0 || q == 2.0 { -x } else { x };
     let y = if q == 2.0 || q == 3.0 { -y } else { y };
     (x, y)
+}
+
+/// `lucent_shading::optics::fresnel_dielectric` without branches, for
+/// lanes: the unpolarised Fresnel reflectance at a cosine `cos_theta_i`
+/// from the side where the relative index is `eta`; 1 past the critical
+/// angle and for an `eta` that is not positive and finite, 0 at `eta = 1`.
+#[inline(always)]
+fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_theta_i.abs().min(1.0);
+    let inv = 1.0 / eta;
+    let above = ((1.0 - inv) * (1.0 + inv) + (cos_i * inv) * (cos_i * inv))
+        .max(0.0)
+        .sqrt();
+    let sin2_t = (1.0 - cos_i * cos_i) / eta / eta;
+    let below = (1.0 - sin2_t).max(0.0).sqrt();
+    let cos_t = if eta > 1.0 { above } else { below };
+    let s_den = cos_i + eta * cos_t;
+    let p_den = eta * cos_i + cos_t;
+    let r_s = (cos_i - eta * cos_t) / s_den;
+    let r_p = (eta * cos_i - cos_t) / p_den;
+    let r = 0.5 * (r_s * r_s + r_p * r_p);
+    let total = eta <= 1.0 && sin2_t > 1.0;
+    let bad = cos_theta_i.is_nan() || !(eta > 0.0 && eta <= f32::MAX) || total;
+    let invisible = eta == 1.0 || s_den <= 0.0 || p_den <= 0.0;
+    if bad {
+        1.0
+    } else if invisible {
+        0.0
+    } else {
+        r
+    }
 }
 
 /// Veach's power heuristic, as the path tracer has it.

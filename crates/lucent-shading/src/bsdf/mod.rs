@@ -192,6 +192,15 @@ pub struct Bsdf {
     kind: Kind,
 }
 
+/// A BSDF that is one delta lobe alone ([`Bsdf::single_delta_lobe`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DeltaLobe {
+    /// A smooth mirror with Fresnel term 1, and its reflectance.
+    Mirror(Vec3),
+    /// A smooth dielectric: its tint and its index inside over outside.
+    Dielectric(Vec3, f32),
+}
+
 /// The cases of a mixture the path tracer asks about at every vertex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kind {
@@ -567,6 +576,28 @@ impl Bsdf {
     #[inline]
     pub fn lambertian_albedo(&self) -> Option<Vec3> {
         self.only_diffuse().then_some(self.diffuse)
+    }
+
+    /// What a batch shader needs of a BSDF that is one delta lobe alone:
+    /// a smooth mirror whose Fresnel term is 1 (its reflectance), or a
+    /// smooth dielectric (its tint and relative index); `None` for any
+    /// other mixture. `sample` then reflects with weight `reflectance`
+    /// (the mirror), or reflects with probability `R` and weight `tint`
+    /// and refracts otherwise with weight `tint / eta_ti^2` (the
+    /// dielectric, `eta_ti` the index of the side entered over the side
+    /// left).
+    pub fn single_delta_lobe(&self) -> Option<DeltaLobe> {
+        let only = |k: usize| (0..4).all(|j| self.prob(j) == if j == k { 1.0 } else { 0.0 });
+        if self.kind != Kind::Delta {
+            return None;
+        }
+        if only(CONDUCTOR) && self.smooth_conductor() && !self.schlick {
+            return Some(DeltaLobe::Mirror(self.conductor));
+        }
+        if only(DIELECTRIC) {
+            return Some(DeltaLobe::Dielectric(self.dielectric, self.eta));
+        }
+        None
     }
 
     /// True when every lobe with weight is a delta: next-event estimation
