@@ -27,8 +27,9 @@
 //! [`Isa::run`] runs the kernel as it is compiled: that copy is the
 //! reference.
 //!
-//! `unsafe` here: the calls of the three `#[target_feature]` functions
-//! (the loop, the mixture's sample and its evaluation), sound because an
+//! `unsafe` here: the calls of the `#[target_feature]` functions (the
+//! loop, the mixture's sample and its evaluation, the lane tracer's row in
+//! AVX2 and AVX-512, `LaneIsa`), sound because an
 //! [`Isa`] whose `avx2` is set exists only once [`Isa::detect`] found every
 //! feature they enable.
 #![allow(unsafe_code, reason = "the AVX2 copy of the render loop; see the module docs")]
@@ -214,6 +215,27 @@ impl LaneIsa {
         }
         kernel.run()
     }
+}
+
+/// Asks for the two cache lines of a 128-byte, 64-aligned record `value`
+/// (the lane tracer's triangle records, as soon as a lane's hit names one:
+/// the other lanes' traversals run while the lines arrive). A hint only.
+#[inline(always)]
+pub(crate) fn prefetch_record<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (value as *const T).cast::<i8>();
+        // SAFETY: a prefetch reads nothing and never faults, whatever the
+        // address; the second address is made with `wrapping_add`, and SSE
+        // (which has the instruction) is part of every x86-64.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
 }
 
 /// Whether this processor has every feature [`run_avx512`] is compiled
