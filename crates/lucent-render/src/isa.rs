@@ -176,14 +176,19 @@ pub(crate) enum LaneIsa {
 }
 
 impl LaneIsa {
-    /// The copy `request` names (`LUCENT_LANES`'s value: `1` for AVX-512,
-    /// `avx2`, `baseline`), where this processor runs it; `None` where it
-    /// does not (the scalar tracer then renders).
-    pub(crate) fn for_request(request: &str) -> Option<Self> {
-        match request {
-            "baseline" => Some(Self::Baseline),
-            "avx2" => avx2_present().then_some(Self::Avx2),
-            _ => avx512_present().then_some(Self::Avx512),
+    /// The copy a render with `lanes` set runs: the widest this processor
+    /// has (AVX-512, else AVX2, else the baseline; they give the same
+    /// bits), unless `LUCENT_LANES_ISA` names another for diagnostics
+    /// (`avx2` or `baseline`: callgrind, which hides AVX-512, counts the
+    /// AVX2 copy; a copy the processor lacks is not taken).
+    pub(crate) fn chosen() -> Self {
+        let forced = std::env::var("LUCENT_LANES_ISA").unwrap_or_default();
+        match forced.as_str() {
+            "baseline" => Self::Baseline,
+            "avx2" if avx2_present() => Self::Avx2,
+            _ if avx512_present() => Self::Avx512,
+            _ if avx2_present() => Self::Avx2,
+            _ => Self::Baseline,
         }
     }
 
@@ -206,7 +211,7 @@ impl LaneIsa {
         #[cfg(target_arch = "x86_64")]
         match self {
             // SAFETY: a `LaneIsa` other than `Baseline` is made only by
-            // `for_request` and `all_present`, once `avx2_present` or
+            // `chosen` and `all_present`, once `avx2_present` or
             // `avx512_present` found every feature the function enables.
             Self::Avx2 => return unsafe { run_avx2(kernel) },
             // SAFETY: as above.

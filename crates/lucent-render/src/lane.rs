@@ -1,5 +1,5 @@
 //! The path tracer in sixteen SIMD lanes (issue 14's experiment, opt-in
-//! with `LUCENT_LANES=1`): the shading of sixteen paths at a time as lane
+//! with `RenderSettings::lanes`, `--lanes`): the shading of sixteen paths at a time as lane
 //! loops over `[f32; 16]` arrays, which the AVX-512 copy of the loop
 //! (`isa::LaneIsa`) compiles to one zmm register per array.
 //!
@@ -945,14 +945,6 @@ fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let (a, b) = (pdf * pdf, other * other);
     if a + b > 0.0 && a <= f32::MAX { a / (a + b) } else { 1.0 }
-}
-
-/// Whether the caller asked for the lane tracer: `LUCENT_LANES` in the
-/// environment, `1` for the AVX-512 copy (where the processor has it),
-/// `avx2` or `baseline` to force another copy (for instruction counts under
-/// callgrind, which hides AVX-512, and for comparisons).
-pub(crate) fn requested() -> Option<String> {
-    std::env::var("LUCENT_LANES").ok().filter(|v| !v.is_empty() && v != "0")
 }
 
 #[cfg(test)]

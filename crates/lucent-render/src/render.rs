@@ -385,10 +385,10 @@ fn trace_rows(
     cancel: &AtomicBool,
 ) -> RayStats {
     if matches!(settings.integrator, Integrator::Path)
-        && let Some(request) = crate::lane::requested()
-        && let Some(lane_isa) = LaneIsa::for_request(&request)
+        && settings.lanes
         && let Some(tracer) = LaneTracer::new(scene, settings)
     {
+        let lane_isa = LaneIsa::chosen();
         let (stats, counts) = trace_rows_lanes(lane_isa, &tracer, scene, settings, film, samples, progress, cancel);
         if std::env::var_os("LUCENT_LANES_STATS").is_some() {
             let per_step = |n: u64| n as f64 / counts.steps.max(1) as f64;
