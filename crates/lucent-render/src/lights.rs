@@ -396,6 +396,12 @@ impl LightSet {
             && self.cdf.len() == self.emitters.len()
     }
 
+    /// Whether some emitter's radiance is scaled by an emission map (which
+    /// the lane path tracer does not read).
+    pub(crate) fn has_emission_maps(&self) -> bool {
+        !self.maps.is_empty() || self.emitters.iter().any(|e| e.map != NONE)
+    }
+
     /// The cumulative selection probabilities and each light's own, in
     /// [`LightSet::sample`]'s order (the emitters first).
     pub(crate) fn pick_tables(&self) -> (&[f32], &[f32]) {
