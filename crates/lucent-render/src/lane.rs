@@ -9,18 +9,27 @@
 //! paths of a row). One step of the sixteen lanes:
 //! 1. per lane: refill an empty lane (camera ray and random stream, as the
 //!    scalar tracer starts them) and trace its ray through the flat tree
-//!    (one ray at a time, the traversal kernel of `lucent-accel`);
+//!    (one ray at a time, the traversal kernel of `lucent-accel`); a ray
+//!    that leaves the scene ends its path there with the environment's
+//!    light (weighted as the scalar tracer weighs it) and the lane takes
+//!    the pool's next path at once;
 //! 2. in lanes: the hit's triangle fetched by index (gathers; its record
 //!    was prefetched when the lane's query returned) from a table
 //!    built once per render, one 128-byte record per triangle in render
 //!    space (corners, corner normals, geometric normal, magnitude, albedo,
 //!    emitter); the point and the shading normal interpolated; emission
 //!    found and its MIS weight; seven random numbers per lane from sixteen
-//!    PCG32 generators stepped together (64-bit multiplies in lanes);
+//!    PCG32 generators stepped together (64-bit multiplies in lanes); on a
+//!    textured triangle the texture coordinates (in lanes, from a table of
+//!    each triangle's corner coordinates) and the albedo times the diffuse
+//!    texture there (a bilinear lookup per lane);
 //! 3. in lanes, for the lanes at a plain Lambertian vertex: the shading
 //!    frame, the light pick over the emitters' cumulative probabilities, the
 //!    point on the emitter, the BSDF value and density, the shadow ray's
 //!    ends (the ray offsets of `lucent_geom::offset_coord`, branch-free);
+//!    in a scene with other lights (directional, point, the environment)
+//!    or more than [`MAX_PICK`] emitters, the light sample per lane from
+//!    `LightSet::sample` instead, with the value and density in lanes;
 //! 4. per lane: the shadow rays;
 //! 5. in lanes: the MIS-weighted light, the cosine-weighted direction (a
 //!    polynomial sine and cosine after a quarter-turn reduction, not the
@@ -46,10 +55,10 @@
 //!
 //! The lane tracer runs only where it shades every vertex the scene can
 //! make ([`LaneTracer::new`] says `None` otherwise and the caller keeps the
-//! scalar tracer): the flat tree, emissive triangles as the only lights
-//! (no point, directional or environment light, no emission map), no
-//! textures, vertex colours, tangents or alpha tests, no indirect clamp
-//! and no free delta bounces, and at most [`MAX_PICK`] emitters.
+//! scalar tracer): the flat tree, no emission map, no texture but a
+//! diffuse one on the report's terms (no normal map, no metallic-roughness
+//! maps), no vertex colours, tangents or alpha tests, no indirect clamp and
+//! no free delta bounces.
 
 #![allow(
     clippy::needless_range_loop,
@@ -126,6 +135,20 @@ const KIND_GLASS: u32 = 2;
 const KIND_BLACK: u32 = 3;
 /// Anything else: the scalar vertex.
 const KIND_OTHER: u32 = 4;
+/// A Lambertian lobe beside a rough GGX conductor with Fresnel 1
+/// (`Bsdf::diffuse_and_rough_conductor`): the seed scene's floor.
+const KIND_GLOSSY: u32 = 5;
+
+/// The conductor lobe of a [`KIND_GLOSSY`] material, and its selection.
+#[derive(Clone, Copy, Debug, Default)]
+struct Glossy {
+    conductor: [f32; 3],
+    alpha: f32,
+    /// Cumulative selection probabilities after the diffuse lobe and after
+    /// the conductor.
+    c0: f32,
+    c1: f32,
+}
 
 /// One emissive triangle, as the lanes gather it.
 #[derive(Clone, Copy, Debug)]
@@ -156,6 +179,8 @@ pub struct LaneCounts {
     pub delta: u64,
     /// Lanes shaded by the scalar vertex (other mixtures).
     pub scalar: u64,
+    /// Lanes at a Lambertian-and-GGX vertex, shaded in lanes.
+    pub glossy: u64,
 }
 
 impl std::ops::Add for LaneCounts {
@@ -167,6 +192,7 @@ impl std::ops::Add for LaneCounts {
             diffuse: self.diffuse + o.diffuse,
             delta: self.delta + o.delta,
             scalar: self.scalar + o.scalar,
+            glossy: self.glossy + o.glossy,
         }
     }
 }
@@ -193,6 +219,8 @@ pub(crate) struct LaneTracer<'a> {
     /// v1 u2 v2) where the material has a diffuse texture; empty where no
     /// material has one.
     uvs: Vec<[f32; 6]>,
+    /// Per material, its conductor lobe where it is [`KIND_GLOSSY`].
+    glossy: Vec<Glossy>,
 }
 
 /// The state of the sixteen paths.
@@ -233,6 +261,8 @@ struct Hits {
     eta: Lf,
     /// The vertex is shaded by the scalar code.
     scalar: Lb,
+    /// The vertex is a Lambertian-and-GGX one, shaded in lanes.
+    glossy: Lb,
     /// The seven numbers of the vertex.
     rnd: [Lf; 7],
 }
@@ -247,6 +277,19 @@ struct LightLanes {
     st: Lf,
     /// Whether the lane traces its shadow ray.
     shadow: Lb,
+}
+
+/// The shading frame and `wo` in it, and the conductor lobe of
+/// [`KIND_GLOSSY`] lanes.
+struct BsdfLanes {
+    t: L3,
+    b: L3,
+    /// `wo` in the frame (x along `t`, y along `b`, z along the normal).
+    wo: L3,
+    conductor: L3,
+    alpha: Lf,
+    c0: Lf,
+    c1: Lf,
 }
 
 /// The numbers of a vertex in `Hits::rnd`.
@@ -280,6 +323,18 @@ impl<'a> LaneTracer<'a> {
         }
         let flat = scene.flat_bvh()?;
         let bsdfs: Vec<Bsdf> = scene.materials.iter().map(|m| m.bsdf_at(None, None)).collect();
+        let glossy = bsdfs
+            .iter()
+            .map(|b| match b.diffuse_and_rough_conductor() {
+                Some((_, conductor, alpha, c0, c1)) => Glossy {
+                    conductor: conductor.to_array(),
+                    alpha,
+                    c0,
+                    c1,
+                },
+                None => Glossy::default(),
+            })
+            .collect();
         let (cdf, prob) = lights.pick_tables();
         let general_lights = !lights.only_plain_emitters() || lights.emitters().len() > MAX_PICK || cdf.is_empty();
         let mut emits: Vec<Emit> = lights
@@ -338,6 +393,7 @@ impl<'a> LaneTracer<'a> {
             bsdfs,
             general_lights,
             uvs,
+            glossy,
         })
     }
 
@@ -381,6 +437,10 @@ impl<'a> LaneTracer<'a> {
             (Some(albedo), _) if ng != Vec3::ZERO => (KIND_DIFFUSE, albedo, 1.0),
             (_, Some(DeltaLobe::Mirror(r))) if ng != Vec3::ZERO => (KIND_MIRROR, r, 1.0),
             (_, Some(DeltaLobe::Dielectric(tint, eta))) if ng != Vec3::ZERO => (KIND_GLASS, tint, eta),
+            _ if ng != Vec3::ZERO && bsdf.diffuse_and_rough_conductor().is_some() => {
+                let (diffuse, ..) = bsdf.diffuse_and_rough_conductor()?;
+                (KIND_GLOSSY, diffuse, 1.0)
+            }
             _ if bsdf.is_delta() && bsdf.albedo() == Vec3::ZERO => (KIND_BLACK, Vec3::ZERO, 1.0),
             _ => (KIND_OTHER, Vec3::ZERO, 1.0),
         };
@@ -456,6 +516,7 @@ impl<'a> LaneTracer<'a> {
             uv: [Z; 2],
             eta: Z,
             scalar: [false; LANES],
+            glossy: [false; LANES],
             rnd: [Z; 7],
         };
         let n = out.len().min(NONE as usize);
@@ -518,7 +579,9 @@ impl<'a> LaneTracer<'a> {
             let mut n_diffuse = 0;
             let mut n_delta = 0;
             let mut n_scalar = 0;
+            let mut n_glossy = 0;
             for i in 0..LANES {
+                n_glossy += u64::from(h.glossy[i]);
                 n_diffuse += u64::from(h.diffuse[i]);
                 n_delta += u64::from(h.delta[i]);
                 n_scalar += u64::from(h.scalar[i]);
@@ -526,10 +589,14 @@ impl<'a> LaneTracer<'a> {
             counts.diffuse += n_diffuse;
             counts.delta += n_delta;
             counts.scalar += n_scalar;
+            counts.glossy += n_glossy;
             // 3 to 5. The Lambertian lanes.
             let mut go_on = [false; LANES];
             if n_diffuse > 0 {
-                self.shade_diffuse(&mut paths, &h, &mut go_on, stats);
+                self.shade_diffuse::<false>(&mut paths, &h, &mut go_on, stats);
+            }
+            if n_glossy > 0 {
+                self.shade_diffuse::<true>(&mut paths, &h, &mut go_on, stats);
             }
             // Mirrors and glass.
             if n_delta > 0 {
@@ -641,6 +708,7 @@ impl<'a> LaneTracer<'a> {
             h.glass[i] = t.kind == KIND_GLASS;
             h.eta[i] = t.eta;
             h.scalar[i] = goes_on && t.kind == KIND_OTHER;
+            h.glossy[i] = goes_on && t.kind == KIND_GLOSSY;
         }
         if !self.uvs.is_empty() {
             self.textures(h);
@@ -681,7 +749,8 @@ impl<'a> LaneTracer<'a> {
             let w = 1.0 - u - v;
             h.uv[0][i] = c[0] * w + c[2] * u + c[4] * v;
             h.uv[1][i] = c[1] * w + c[3] * u + c[5] * v;
-            textured[i] = (h.diffuse[i] || h.scalar[i]) && tris[(h.tri[i] as usize).min(t_last)].textured != 0;
+            textured[i] =
+                (h.diffuse[i] || h.scalar[i] || h.glossy[i]) && tris[(h.tri[i] as usize).min(t_last)].textured != 0;
             any |= textured[i];
         }
         if !any {
@@ -708,13 +777,39 @@ impl<'a> LaneTracer<'a> {
     /// Steps 3 to 5 for the lanes `h.diffuse`; sets `go_on` for the paths
     /// that continue.
     #[inline(always)]
-    fn shade_diffuse(&self, paths: &mut Paths, h: &Hits, go_on: &mut Lb, stats: &mut RayStats) {
+    fn shade_diffuse<const G: bool>(&self, paths: &mut Paths, h: &Hits, go_on: &mut Lb, stats: &mut RayStats) {
+        let mine = if G { &h.glossy } else { &h.diffuse };
         // The frame (`Frame::from_normal`), `wo` in it, the light sample,
         // the BSDF towards it and the shadow ray's ends.
         let mut t = Z3;
         let mut b = Z3;
         let mut wo_z = Z;
         let mut live = [false; LANES];
+        let mut bl = BsdfLanes {
+            t: Z3,
+            b: Z3,
+            wo: Z3,
+            conductor: Z3,
+            alpha: Z,
+            c0: Z,
+            c1: Z,
+        };
+        if G {
+            let glossy = &self.glossy[..];
+            let tris = &self.tris[..];
+            if let (Some(g_last), Some(t_last)) = (glossy.len().checked_sub(1), tris.len().checked_sub(1)) {
+                for i in 0..LANES {
+                    let m = tris[(h.tri[i] as usize).min(t_last)].material;
+                    let g = &glossy[(m as usize).min(g_last)];
+                    for c in 0..3 {
+                        bl.conductor[c][i] = g.conductor[c];
+                    }
+                    bl.alpha[i] = g.alpha;
+                    bl.c0[i] = g.c0;
+                    bl.c1[i] = g.c1;
+                }
+            }
+        }
         for i in 0..LANES {
             let (nx, ny, nz) = (h.ns[0][i], h.ns[1][i], h.ns[2][i]);
             let sign = 1f32.copysign(nz);
@@ -729,8 +824,15 @@ impl<'a> LaneTracer<'a> {
             let (dx, dy, dz) = (-paths.d[0][i], -paths.d[1][i], -paths.d[2][i]);
             let lz = nx * dx + ny * dy + nz * dz;
             wo_z[i] = lz;
-            live[i] = h.diffuse[i] && lz != 0.0;
+            live[i] = mine[i] && lz != 0.0;
+            if G {
+                bl.wo[0][i] = t[0][i] * dx + t[1][i] * dy + t[2][i] * dz;
+                bl.wo[1][i] = b[0][i] * dx + b[1][i] * dy + b[2][i] * dz;
+                bl.wo[2][i] = lz;
+            }
         }
+        bl.t = t;
+        bl.b = b;
         let mut ls = LightLanes {
             light: Z3,
             so: Z3,
@@ -739,9 +841,9 @@ impl<'a> LaneTracer<'a> {
             shadow: [false; LANES],
         };
         if self.general_lights {
-            self.sample_lights(paths, h, &live, &wo_z, &mut ls);
+            self.sample_lights::<G>(paths, h, &live, &wo_z, &bl, &mut ls);
         } else {
-            self.sample_emitters(paths, h, &live, &wo_z, &mut ls);
+            self.sample_emitters::<G>(paths, h, &live, &wo_z, &bl, &mut ls);
         }
         let LightLanes {
             light,
@@ -775,13 +877,39 @@ impl<'a> LaneTracer<'a> {
             let z = if wo_z[i] < 0.0 { -z } else { z };
             let l2 = x * x + y * y + z * z;
             let k = 1.0 / l2.sqrt();
-            let (lx, ly, lz) = (x * k, y * k, z * k);
-            let pdf = lz.abs() * FRAC_1_PI;
-            let ok = live[i] && l2 > 0.0 && l2 <= f32::MAX && pdf > 0.0;
+            let (mut lx, mut ly, mut lz) = (x * k, y * k, z * k);
+            let mut pdf = lz.abs() * FRAC_1_PI;
+            let mut ok = live[i] && l2 > 0.0 && l2 <= f32::MAX && pdf > 0.0;
+            // The BSDF sample's weight (the albedo for a Lambertian lobe).
+            let mut weight = [h.albedo[0][i], h.albedo[1][i], h.albedo[2][i]];
+            if G {
+                // The mixture's lobe choice, the GGX candidate beside the
+                // cosine-weighted one, and the mixture's value and density
+                // (`Bsdf::sample_general`).
+                let u_lobe = h.rnd[U_LOBE][i];
+                let diffuse = u_lobe < bl.c0[i];
+                let conductor = !diffuse && u_lobe < bl.c1[i];
+                let wo = [bl.wo[0][i], bl.wo[1][i], bl.wo[2][i]];
+                let (g, g_ok) = ggx_sample(wo, h.rnd[U_BSDF][i], h.rnd[U_BSDF + 1][i], bl.alpha[i]);
+                let s = if diffuse { [lx, ly, lz] } else { g };
+                let s2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2];
+                let inv = 1.0 / s2.sqrt();
+                let s = [s[0] * inv, s[1] * inv, s[2] * inv];
+                let unit = s2 > 0.0 && s2 <= f32::MAX && s[2] != 0.0;
+                let (f, p) = Self::eval_local(&bl, weight, i, s);
+                let mut finite = true;
+                for c in 0..3 {
+                    weight[c] = f[c] / p;
+                    finite &= weight[c].abs() <= f32::MAX;
+                }
+                ok = live[i] && ((diffuse && ok) || (conductor && g_ok)) && unit && p > 0.0 && p <= f32::MAX && finite;
+                (lx, ly, lz) = (s[0], s[1], s[2]);
+                pdf = p;
+            }
             let mut m = 0.0f32;
             let mut wi = [0.0f32; 3];
             for c in 0..3 {
-                let tc = paths.thr[c][i] * h.albedo[c][i];
+                let tc = paths.thr[c][i] * weight[c];
                 paths.thr[c][i] = if ok { tc } else { paths.thr[c][i] };
                 m = m.max(tc);
                 wi[c] = t[c][i] * lx + b[c][i] * ly + h.ns[c][i] * lz;
@@ -805,7 +933,7 @@ impl<'a> LaneTracer<'a> {
             for c in 0..3 {
                 paths.thr[c][i] /= scale;
             }
-            go_on[i] = if h.diffuse[i] { ok && m > 0.0 && lives } else { go_on[i] };
+            go_on[i] = if mine[i] { ok && m > 0.0 && lives } else { go_on[i] };
         }
         let mut bounces = 0;
         for i in 0..LANES {
@@ -814,12 +942,73 @@ impl<'a> LaneTracer<'a> {
         stats.reflection += bounces;
     }
 
+    /// The BSDF of lane `i` towards the unit world direction `wi`: its
+    /// value (cosine included) and density. Lambertian alone (`G` false):
+    /// `albedo |cos| / pi` on `wo`'s side (`wo_z` its cosine); with `G`,
+    /// the Lambertian-and-GGX mixture of `bl` ([`Self::eval_local`]).
+    #[inline(always)]
+    fn eval_world<const G: bool>(
+        bl: &BsdfLanes,
+        h: &Hits,
+        i: usize,
+        n: [f32; 3],
+        wo_z: f32,
+        wi: [f32; 3],
+    ) -> ([f32; 3], f32) {
+        let z = n[0] * wi[0] + n[1] * wi[1] + n[2] * wi[2];
+        if G {
+            let x = bl.t[0][i] * wi[0] + bl.t[1][i] * wi[1] + bl.t[2][i] * wi[2];
+            let y = bl.b[0][i] * wi[0] + bl.b[1][i] * wi[1] + bl.b[2][i] * wi[2];
+            let albedo = [h.albedo[0][i], h.albedo[1][i], h.albedo[2][i]];
+            return Self::eval_local(bl, albedo, i, [x, y, z]);
+        }
+        let dens = if wo_z * z > 0.0 { z.abs() * FRAC_1_PI } else { 0.0 };
+        let mut f = [0.0f32; 3];
+        for c in 0..3 {
+            f[c] = h.albedo[c][i] * dens;
+        }
+        (f, dens)
+    }
+
+    /// The Lambertian-and-GGX mixture of lane `i` at the unit local
+    /// direction `wi` (`bl.wo` the way back): `Bsdf::eval_pdf_general` for
+    /// those two lobes, without branches.
+    #[inline(always)]
+    fn eval_local(bl: &BsdfLanes, albedo: [f32; 3], i: usize, wi: [f32; 3]) -> ([f32; 3], f32) {
+        let wo = [bl.wo[0][i], bl.wo[1][i], bl.wo[2][i]];
+        let lambert = if wo[2] * wi[2] > 0.0 {
+            wi[2].abs() * FRAC_1_PI
+        } else {
+            0.0
+        };
+        let (g, q) = ggx_eval_pdf(wo, wi, bl.alpha[i]);
+        let (c0, c1) = (bl.c0[i], bl.c1[i]);
+        let mut f = [0.0f32; 3];
+        let mut finite = true;
+        for c in 0..3 {
+            let spec = if g > 0.0 { bl.conductor[c][i] * g } else { 0.0 };
+            f[c] = albedo[c] * lambert + spec;
+            finite &= f[c].abs() <= f32::MAX;
+        }
+        let p = c0 * lambert + (c1 - c0) * q;
+        let p = if p.abs() <= f32::MAX { p } else { 0.0 };
+        (if finite { f } else { [0.0; 3] }, p)
+    }
+
     /// The light samples of the lanes `live` from the emitters, in lanes:
     /// the pick over the cumulative probabilities, the point on the
     /// triangle, the Lambertian value and density towards it, and the
     /// shadow ray's ends.
     #[inline(always)]
-    fn sample_emitters(&self, paths: &Paths, h: &Hits, live: &Lb, wo_z: &Lf, ls: &mut LightLanes) {
+    fn sample_emitters<const G: bool>(
+        &self,
+        paths: &Paths,
+        h: &Hits,
+        live: &Lb,
+        wo_z: &Lf,
+        bl: &BsdfLanes,
+        ls: &mut LightLanes,
+    ) {
         let emits = &self.emits[..];
         let cdf = &self.cdf[..];
         let (Some(e_last), Some(c_last)) = (emits.len().checked_sub(1), cdf.len().checked_sub(1)) else {
@@ -852,14 +1041,13 @@ impl<'a> LaneTracer<'a> {
             let cos = if e.two_sided != 0 { nd.abs() } else { -nd };
             let light_pdf = e.prob * dist2 / (e.area * cos);
             let ok = live[i] && e.prob > 0.0 && dist > 0.0 && dist <= f32::MAX && cos > 0.0;
-            // The Lambertian value and density towards `wi`.
-            let z = nx * wi[0] + ny * wi[1] + nz * wi[2];
-            let dens = if lz * z > 0.0 { z.abs() * FRAC_1_PI } else { 0.0 };
+            // The BSDF's value and density towards `wi`.
+            let (f, dens) = Self::eval_world::<G>(bl, h, i, [nx, ny, nz], lz, wi);
             let w = power_heuristic(light_pdf, dens);
             let k = w / light_pdf;
             let mut any = false;
             for c in 0..3 {
-                let f = h.albedo[c][i] * dens;
+                let f = f[c];
                 any |= f != 0.0;
                 ls.light[c][i] = paths.thr[c][i] * f * e.radiance[c] * k;
             }
@@ -896,7 +1084,15 @@ impl<'a> LaneTracer<'a> {
     /// Lambertian density by the power heuristic), the value towards it
     /// and the shadow ray (`LightSample::shadow_ray`).
     #[inline(never)]
-    fn sample_lights(&self, paths: &Paths, h: &Hits, live: &Lb, wo_z: &Lf, ls: &mut LightLanes) {
+    fn sample_lights<const G: bool>(
+        &self,
+        paths: &Paths,
+        h: &Hits,
+        live: &Lb,
+        wo_z: &Lf,
+        bl: &BsdfLanes,
+        ls: &mut LightLanes,
+    ) {
         let lights = &self.scene.light_set;
         for i in 0..LANES {
             if !live[i] {
@@ -908,16 +1104,13 @@ impl<'a> LaneTracer<'a> {
             let Some(s) = lights.sample(p, h.rnd[U_PICK][i], u) else {
                 continue;
             };
-            let z = ns.dot(s.wi);
-            let dens = if wo_z[i] * z > 0.0 { z.abs() * FRAC_1_PI } else { 0.0 };
-            if dens == 0.0 {
-                continue;
-            }
+            let n = [ns.x, ns.y, ns.z];
+            let (f, dens) = Self::eval_world::<G>(bl, h, i, n, wo_z[i], [s.wi.x, s.wi.y, s.wi.z]);
             let w = if s.delta { 1.0 } else { power_heuristic(s.pdf, dens) };
             let k = w / s.pdf;
             let mut any = false;
             for c in 0..3 {
-                let f = h.albedo[c][i] * dens;
+                let f = f[c];
                 any |= f != 0.0;
                 ls.light[c][i] = paths.thr[c][i] * f * s.value[c] * k;
             }
@@ -1142,6 +1335,70 @@ fn sincos_turn(u: f32) -> (f32, f32) {
     let x = if q == 1.0 || q == 2.0 { -x } else { x };
     let y = if q == 2.0 || q == 3.0 { -y } else { y };
     (x, y)
+}
+
+/// `(D G2 / (4 |wo.z|), G1(wo) D / (4 |wo.z|))` of GGX reflection with
+/// roughness `alpha` for unit local `wo` and `wi` (both turned up when
+/// `wo` is below): `lucent_shading`'s `ggx_eval_pdf` without branches;
+/// `(0, 0)` for a pair on opposite sides or a half vector not above.
+#[inline(always)]
+fn ggx_eval_pdf(wo: [f32; 3], wi: [f32; 3], alpha: f32) -> (f32, f32) {
+    let same = wo[2] * wi[2] > 0.0;
+    let s = if wo[2] < 0.0 { -1.0 } else { 1.0 };
+    let o = [wo[0] * s, wo[1] * s, wo[2] * s];
+    let w = [wi[0] * s, wi[1] * s, wi[2] * s];
+    let hv = [o[0] + w[0], o[1] + w[1], o[2] + w[2]];
+    let l2 = hv[0] * hv[0] + hv[1] * hv[1] + hv[2] * hv[2];
+    let r = if l2 > 0.0 && l2 <= f32::MAX {
+        1.0 / l2.sqrt()
+    } else {
+        0.0
+    };
+    let h = [hv[0] * r, hv[1] * r, hv[2] * r];
+    let valid = same && h[2] > 0.0;
+    let a2 = alpha * alpha;
+    let lambda = |v: [f32; 3]| 0.5 * ((1.0 + a2 * (v[0] * v[0] + v[1] * v[1]) / (v[2] * v[2])).sqrt() - 1.0);
+    let (lo, li) = (lambda(o), lambda(w));
+    let t = (h[0] * h[0] + h[1] * h[1]) / a2 + h[2] * h[2];
+    let d = 1.0 / (std::f32::consts::PI * a2 * t * t);
+    let g2 = 1.0 / (1.0 + lo + li);
+    let g1 = 1.0 / (1.0 + lo);
+    let den = 4.0 * o[2];
+    if valid {
+        (d * g2 / den, g1 * d / den)
+    } else {
+        (0.0, 0.0)
+    }
+}
+
+/// A GGX visible-normal reflection of unit local `wo` with numbers `u0`
+/// (the azimuth) and `u1`, roughness `alpha`: `lucent_shading`'s
+/// `ggx_sample` (Dupuy and Benyoub's spherical cap) without branches, with
+/// the polynomial sine and cosine; the direction (not unit) and whether it
+/// is above the surface on `wo`'s side.
+#[inline(always)]
+fn ggx_sample(wo: [f32; 3], u0: f32, u1: f32, alpha: f32) -> ([f32; 3], bool) {
+    let s = if wo[2] < 0.0 { -1.0 } else { 1.0 };
+    let o = [wo[0] * s, wo[1] * s, wo[2] * s];
+    let unit = |v: [f32; 3]| {
+        let l2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        let r = if l2 > 0.0 && l2 <= f32::MAX {
+            1.0 / l2.sqrt()
+        } else {
+            0.0
+        };
+        [v[0] * r, v[1] * r, v[2] * r]
+    };
+    let ws = unit([alpha * o[0], alpha * o[1], o[2]]);
+    let (cos_phi, sin_phi) = sincos_turn(u0);
+    let z = (1.0 - u1) * (1.0 + ws[2]) - ws[2];
+    let sin_t = (1.0 - z * z).clamp(0.0, 1.0).sqrt();
+    let hs = [sin_t * cos_phi + ws[0], sin_t * sin_phi + ws[1], z + ws[2]];
+    let h = unit([alpha * hs[0], alpha * hs[1], hs[2]]);
+    let k = 2.0 * (o[0] * h[0] + o[1] * h[1] + o[2] * h[2]);
+    let wi = [k * h[0] - o[0], k * h[1] - o[1], k * h[2] - o[2]];
+    let ok = h[2] > 0.0 && wi[2] > 0.0;
+    ([wi[0] * s, wi[1] * s, wi[2] * s], ok)
 }
 
 /// `lucent_shading::optics::fresnel_dielectric` without branches, for
@@ -1498,6 +1755,75 @@ mod tests {
                 (a - b).abs() <= 1e-6 * b.abs().max(1.0),
                 "cos {c} eta {eta}: {a} against {b}"
             );
+        }
+    }
+
+    /// The lanes' Lambertian-and-GGX mixture gives `Bsdf::eval_pdf`'s value
+    /// and density, and the library's mixtures of other lobes are not
+    /// taken for it.
+    #[test]
+    fn the_lane_diffuse_and_ggx_mixture_is_the_bsdfs() {
+        let floor = SceneMaterial {
+            kd: Vec3::new(0.42, 0.36, 0.30),
+            kr: Vec3::splat(0.35),
+            roughness: 0.3,
+            ..SceneMaterial::default()
+        };
+        let mirror_floor = SceneMaterial {
+            roughness: 0.0,
+            ..floor.clone()
+        };
+        assert!(mirror_floor.bsdf_at(None, None).diffuse_and_rough_conductor().is_none());
+        assert!(Bsdf::lambertian(Vec3::ONE).diffuse_and_rough_conductor().is_none());
+        assert!(
+            Bsdf::rough_conductor(Vec3::ONE, 0.3)
+                .diffuse_and_rough_conductor()
+                .is_none()
+        );
+        let mut rng = Pcg32::new(3, 7);
+        for roughness in [0.1f32, 0.3, 0.8] {
+            let bsdf = SceneMaterial {
+                roughness,
+                ..floor.clone()
+            }
+            .bsdf_at(None, None);
+            let Some((diffuse, conductor, alpha, c0, c1)) = bsdf.diffuse_and_rough_conductor() else {
+                panic!("a diffuse and GGX mixture");
+            };
+            let mut bl = BsdfLanes {
+                t: Z3,
+                b: Z3,
+                wo: Z3,
+                conductor: Z3,
+                alpha: [alpha; LANES],
+                c0: [c0; LANES],
+                c1: [c1; LANES],
+            };
+            for c in 0..3 {
+                bl.conductor[c] = [conductor[c]; LANES];
+            }
+            let mut dir = || {
+                let v = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5);
+                LocalDir::new(v)
+            };
+            let mut checked = 0;
+            for _ in 0..20_000 {
+                let (Some(wo), Some(wi)) = (dir(), dir()) else {
+                    continue;
+                };
+                for c in 0..3 {
+                    bl.wo[c][0] = wo.get()[c];
+                }
+                let (f, p) = LaneTracer::eval_local(&bl, diffuse.to_array(), 0, wi.get().to_array());
+                let (f_ref, p_ref) = bsdf.eval_pdf(wo, wi);
+                let close = |a: f32, b: f32| (a - b).abs() <= 2e-5 * b.abs().max(1.0);
+                assert!(close(p, p_ref), "pdf {p} against {p_ref}");
+                for c in 0..3 {
+                    assert!(close(f[c], f_ref[c]), "f {f:?} against {f_ref}");
+                }
+                checked += 1;
+            }
+            assert!(checked > 10_000);
         }
     }
 

@@ -387,7 +387,8 @@ impl LightSet {
 
     /// Whether every light is a plain emissive triangle (no point or
     /// directional light, no environment, no emission map): what the lane
-    /// path tracer ([`crate::lane`]) samples.
+    /// path tracer ([`crate::lane`]) samples in lanes (it samples any other
+    /// set one lane at a time).
     pub(crate) fn only_plain_emitters(&self) -> bool {
         self.lights.is_empty()
             && self.environment.is_none()
