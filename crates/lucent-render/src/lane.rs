@@ -865,7 +865,48 @@ impl<'a> LaneTracer<'a> {
             }
         }
         // 5. The light's contribution, the cosine-weighted next direction,
-        // the throughput, the next ray and Russian roulette.
+        // the throughput, the next ray and Russian roulette. For the
+        // Lambertian-and-GGX lanes, first (in loops of their own, which the
+        // compiler vectorises) the mixture's lobe choice, the cosine and
+        // GGX candidates, and the mixture's value and density there
+        // (`Bsdf::sample_general`).
+        let mut gd = Z3;
+        let mut gp = Z;
+        let mut gok = [false; LANES];
+        let mut gw = Z3;
+        if G {
+            let mut pick = [false; LANES];
+            for i in 0..LANES {
+                let r = h.rnd[U_BSDF][i].sqrt();
+                let (cos_phi, sin_phi) = sincos_turn(h.rnd[U_BSDF + 1][i]);
+                let (x, y) = (r * cos_phi, r * sin_phi);
+                let z = (1.0 - r * r).max(0.0).sqrt();
+                let z = if wo_z[i] < 0.0 { -z } else { z };
+                let wo = [bl.wo[0][i], bl.wo[1][i], bl.wo[2][i]];
+                let (g, g_ok) = ggx_sample(wo, h.rnd[U_BSDF][i], h.rnd[U_BSDF + 1][i], bl.alpha[i]);
+                let u_lobe = h.rnd[U_LOBE][i];
+                let diffuse = u_lobe < bl.c0[i];
+                let conductor = !diffuse && u_lobe < bl.c1[i];
+                let sv = if diffuse { [x, y, z] } else { g };
+                let s2 = sv[0] * sv[0] + sv[1] * sv[1] + sv[2] * sv[2];
+                let inv = 1.0 / s2.sqrt();
+                for c in 0..3 {
+                    gd[c][i] = sv[c] * inv;
+                }
+                pick[i] = live[i] && (diffuse || (conductor && g_ok)) && s2 > 0.0 && s2 <= f32::MAX && gd[2][i] != 0.0;
+            }
+            for i in 0..LANES {
+                let albedo = [h.albedo[0][i], h.albedo[1][i], h.albedo[2][i]];
+                let (f, p) = Self::eval_local(&bl, albedo, i, [gd[0][i], gd[1][i], gd[2][i]]);
+                let mut finite = true;
+                for c in 0..3 {
+                    gw[c][i] = f[c] / p;
+                    finite &= gw[c][i].abs() <= f32::MAX;
+                }
+                gp[i] = p;
+                gok[i] = pick[i] && p > 0.0 && p <= f32::MAX && finite;
+            }
+        }
         for i in 0..LANES {
             for c in 0..3 {
                 paths.rad[c][i] += if visible[i] { light[c][i] } else { 0.0 };
@@ -883,28 +924,10 @@ impl<'a> LaneTracer<'a> {
             // The BSDF sample's weight (the albedo for a Lambertian lobe).
             let mut weight = [h.albedo[0][i], h.albedo[1][i], h.albedo[2][i]];
             if G {
-                // The mixture's lobe choice, the GGX candidate beside the
-                // cosine-weighted one, and the mixture's value and density
-                // (`Bsdf::sample_general`).
-                let u_lobe = h.rnd[U_LOBE][i];
-                let diffuse = u_lobe < bl.c0[i];
-                let conductor = !diffuse && u_lobe < bl.c1[i];
-                let wo = [bl.wo[0][i], bl.wo[1][i], bl.wo[2][i]];
-                let (g, g_ok) = ggx_sample(wo, h.rnd[U_BSDF][i], h.rnd[U_BSDF + 1][i], bl.alpha[i]);
-                let s = if diffuse { [lx, ly, lz] } else { g };
-                let s2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2];
-                let inv = 1.0 / s2.sqrt();
-                let s = [s[0] * inv, s[1] * inv, s[2] * inv];
-                let unit = s2 > 0.0 && s2 <= f32::MAX && s[2] != 0.0;
-                let (f, p) = Self::eval_local(&bl, weight, i, s);
-                let mut finite = true;
-                for c in 0..3 {
-                    weight[c] = f[c] / p;
-                    finite &= weight[c].abs() <= f32::MAX;
-                }
-                ok = live[i] && ((diffuse && ok) || (conductor && g_ok)) && unit && p > 0.0 && p <= f32::MAX && finite;
-                (lx, ly, lz) = (s[0], s[1], s[2]);
-                pdf = p;
+                (lx, ly, lz) = (gd[0][i], gd[1][i], gd[2][i]);
+                pdf = gp[i];
+                ok = gok[i];
+                weight = [gw[0][i], gw[1][i], gw[2][i]];
             }
             let mut m = 0.0f32;
             let mut wi = [0.0f32; 3];
