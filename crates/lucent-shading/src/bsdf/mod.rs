@@ -600,6 +600,22 @@ impl Bsdf {
         None
     }
 
+    /// What a batch shader needs of a BSDF that is a Lambertian lobe beside
+    /// a rough GGX conductor with Fresnel 1 and nothing else (no Phong or
+    /// dielectric lobe, no layering): `(diffuse, conductor, alpha, c0,
+    /// c1)`, `c0` and `c1` the cumulative selection probabilities after
+    /// the diffuse and the conductor lobe (`sample` picks the diffuse lobe
+    /// for `u_lobe < c0`, the conductor for `c0 <= u_lobe < c1`); `None`
+    /// for any other mixture.
+    pub fn diffuse_and_rough_conductor(&self) -> Option<(Vec3, Vec3, f32, f32, f32)> {
+        let two = self.prob(DIFFUSE) > 0.0
+            && self.prob(GLOSSY) == 0.0
+            && self.prob(CONDUCTOR) > 0.0
+            && self.prob(DIELECTRIC) == 0.0;
+        let plain = !self.smooth_conductor() && !self.schlick && self.coupled_f0 < 0.0 && self.kind == Kind::Mixed;
+        (two && plain).then_some((self.diffuse, self.conductor, self.alpha, self.cdf[0], self.cdf[2]))
+    }
+
     /// True when every lobe with weight is a delta: next-event estimation
     /// is pointless, and `eval` and `pdf` are zero everywhere. (A black
     /// BSDF counts as delta too.)
