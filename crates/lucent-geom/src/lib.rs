@@ -32,7 +32,7 @@ pub use aabb::Aabb;
 pub use glam::{Affine2, Affine3A, DVec3, Mat2, Mat3, Mat3A, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
 pub use mesh::{MeshError, TriMesh};
 pub use names::{Named, assert_table};
-pub use offset::{offset_ray_origin, offset_ray_origin_a, offset_ray_origin_scaled};
+pub use offset::{offset_coord, offset_ray_origin, offset_ray_origin_a, offset_ray_origin_scaled};
 pub use ray::Ray;
 pub use rng::{Pcg32, hash_u64, hash_u64_from};
 pub use triangle::{

@@ -24,6 +24,20 @@ impl Pcg32 {
         rng
     }
 
+    /// The generator's state and stream increment, for code that steps
+    /// many generators side by side ([`Pcg32::from_parts`] gives it back).
+    #[inline]
+    pub fn to_parts(&self) -> (u64, u64) {
+        (self.state, self.inc)
+    }
+
+    /// The generator with `state` and stream increment `inc`, as
+    /// [`Pcg32::to_parts`] gave them.
+    #[inline]
+    pub fn from_parts(state: u64, inc: u64) -> Self {
+        Self { state, inc }
+    }
+
     /// Next uniformly distributed 32-bit value.
     #[inline]
     pub fn next_u32(&mut self) -> u32 {

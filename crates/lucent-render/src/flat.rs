@@ -118,6 +118,12 @@ impl FlatBvh {
         })
     }
 
+    /// Per flattened triangle (the tree's primitive index): its instance
+    /// and its triangle in the instance's mesh.
+    pub(crate) fn owners(&self) -> &[(u32, u32)] {
+        &self.owner
+    }
+
     /// Memory of the tree and the owner table, in bytes.
     pub fn bytes(&self) -> usize {
         self.bvh.bytes() + self.owner.len() * size_of::<(u32, u32)>()

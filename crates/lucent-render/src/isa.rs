@@ -31,11 +31,13 @@
 //! in the AVX2 copy converts its three channels to fixed point at once
 //! (`fixed_avx2`, inlined into the loop) instead of one by one.
 //!
-//! `unsafe` here: the calls of the four `#[target_feature]` functions
-//! (the loop, the mixture's sample and its evaluation, the fixed-point
-//! conversion), sound because an
-//! [`Isa`] whose `avx2` is set exists only once [`Isa::detect`] found every
-//! feature they enable.
+//! `unsafe` here: the calls of the `#[target_feature]` functions (the
+//! loop, the mixture's sample and its evaluation, the fixed-point
+//! conversion, the lane tracer's row in AVX2 and AVX-512, `LaneIsa`),
+//! sound because an [`Isa`] whose `avx2` is set, or a [`LaneIsa`] other
+//! than the baseline, exists only once run-time detection found every
+//! feature they enable; and the lane tracer's prefetch of a triangle
+//! record (`prefetch_record`), which reads nothing and never faults.
 #![allow(unsafe_code, reason = "the AVX2 copy of the render loop; see the module docs")]
 
 use crate::ExactRgb;
@@ -232,6 +234,114 @@ fn avx2_present() -> bool {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run()
+}
+
+/// The copy of the lane path tracer's loop (`crate::lane`) a render runs:
+/// its lane loops over `[f32; 16]` compiled for baseline x86-64 (the
+/// reference, and what runs off x86-64), for AVX2 (two ymm registers per
+/// array; what callgrind, which hides AVX-512, can count), or for AVX-512
+/// (one zmm register per array, 64-bit multiplies and variable rotates in
+/// lanes for PCG32, gathers for the triangle records). Each copy gives the
+/// same bits (`render::tests`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum LaneIsa {
+    /// As compiled (baseline).
+    Baseline,
+    /// The AVX2 copy.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "no vector copy off x86-64"))]
+    Avx2,
+    /// The AVX-512 copy.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code, reason = "no vector copy off x86-64"))]
+    Avx512,
+}
+
+impl LaneIsa {
+    /// The copy a render with `lanes` set runs: the widest this processor
+    /// has (AVX-512, else AVX2, else the baseline; they give the same
+    /// bits), unless `LUCENT_LANES_ISA` names another for diagnostics
+    /// (`avx2` or `baseline`: callgrind, which hides AVX-512, counts the
+    /// AVX2 copy; a copy the processor lacks is not taken).
+    pub(crate) fn chosen() -> Self {
+        let forced = std::env::var("LUCENT_LANES_ISA").unwrap_or_default();
+        match forced.as_str() {
+            "baseline" => Self::Baseline,
+            "avx2" if avx2_present() => Self::Avx2,
+            _ if avx512_present() => Self::Avx512,
+            _ if avx2_present() => Self::Avx2,
+            _ => Self::Baseline,
+        }
+    }
+
+    /// Every copy this processor runs, baseline first (for tests).
+    #[cfg(test)]
+    pub(crate) fn all_present() -> Vec<Self> {
+        let mut all = vec![Self::Baseline];
+        if avx2_present() {
+            all.push(Self::Avx2);
+        }
+        if avx512_present() {
+            all.push(Self::Avx512);
+        }
+        all
+    }
+
+    /// Runs `kernel` in this copy.
+    #[inline(always)]
+    pub(crate) fn run<K: Kernel>(self, kernel: K) -> K::Output {
+        #[cfg(target_arch = "x86_64")]
+        match self {
+            // SAFETY: a `LaneIsa` other than `Baseline` is made only by
+            // `chosen` and `all_present`, once `avx2_present` or
+            // `avx512_present` found every feature the function enables.
+            Self::Avx2 => return unsafe { run_avx2(kernel) },
+            // SAFETY: as above.
+            Self::Avx512 => return unsafe { run_avx512(kernel) },
+            Self::Baseline => {}
+        }
+        kernel.run()
+    }
+}
+
+/// Asks for the two cache lines of a 128-byte, 64-aligned record `value`
+/// (the lane tracer's triangle records, as soon as a lane's hit names one:
+/// the other lanes' traversals run while the lines arrive). A hint only.
+#[inline(always)]
+pub(crate) fn prefetch_record<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (value as *const T).cast::<i8>();
+        // SAFETY: a prefetch reads nothing and never faults, whatever the
+        // address; the second address is made with `wrapping_add`, and SSE
+        // (which has the instruction) is part of every x86-64.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
+}
+
+/// Whether this processor has every feature [`run_avx512`] is compiled
+/// with.
+#[cfg(target_arch = "x86_64")]
+fn avx512_present() -> bool {
+    use std::arch::is_x86_feature_detected as has;
+    avx2_present() && has!("avx512f") && has!("avx512vl") && has!("avx512bw") && has!("avx512dq")
+}
+
+/// No AVX-512 copy off x86-64.
+#[cfg(not(target_arch = "x86_64"))]
+fn avx512_present() -> bool {
+    false
+}
+
+/// `kernel` compiled for AVX-512 (F, VL, BW, DQ) and the AVX2 set.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq")]
+fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
     kernel.run()
 }
 

@@ -46,6 +46,7 @@ mod film;
 pub mod flat;
 pub mod interaction;
 mod isa;
+mod lane;
 pub mod lights;
 pub mod metrics;
 pub mod partial;

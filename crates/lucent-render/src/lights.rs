@@ -385,6 +385,30 @@ impl LightSet {
         p * env.pdf(dir)
     }
 
+    /// Whether every light is a plain emissive triangle (no point or
+    /// directional light, no environment, no emission map): what the lane
+    /// path tracer ([`crate::lane`]) samples in lanes (it samples any other
+    /// set one lane at a time).
+    pub(crate) fn only_plain_emitters(&self) -> bool {
+        self.lights.is_empty()
+            && self.environment.is_none()
+            && self.maps.is_empty()
+            && self.emitters.iter().all(|e| e.map == NONE)
+            && self.cdf.len() == self.emitters.len()
+    }
+
+    /// Whether some emitter's radiance is scaled by an emission map (which
+    /// the lane path tracer does not read).
+    pub(crate) fn has_emission_maps(&self) -> bool {
+        !self.maps.is_empty() || self.emitters.iter().any(|e| e.map != NONE)
+    }
+
+    /// The cumulative selection probabilities and each light's own, in
+    /// [`LightSet::sample`]'s order (the emitters first).
+    pub(crate) fn pick_tables(&self) -> (&[f32], &[f32]) {
+        (&self.cdf, &self.prob)
+    }
+
     /// The emissive triangles.
     pub fn emitters(&self) -> &[Emitter] {
         &self.emitters

@@ -1,7 +1,8 @@
 //! The parallel, deterministic render loop.
 
 use crate::aov::{AovFilm, AovSample, DeltaLightSums, SpecularSums};
-use crate::isa::{Isa, Kernel};
+use crate::isa::{Isa, Kernel, LaneIsa};
+use crate::lane::{LaneCounts, LaneTracer};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{ExactRgb, Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
@@ -383,6 +384,26 @@ fn trace_rows(
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> RayStats {
+    if matches!(settings.integrator, Integrator::Path)
+        && settings.lanes
+        && let Some(tracer) = LaneTracer::new(scene, settings)
+    {
+        let lane_isa = LaneIsa::chosen();
+        let (stats, counts) = trace_rows_lanes(lane_isa, &tracer, scene, settings, film, samples, progress, cancel);
+        if std::env::var_os("LUCENT_LANES_STATS").is_some() {
+            let per_step = |n: u64| n as f64 / counts.steps.max(1) as f64;
+            eprintln!(
+                "lanes ({lane_isa:?}): {} steps, per step {:.2} live, {:.2} diffuse, {:.2} diffuse and GGX, {:.2} mirror or glass, {:.2} scalar",
+                counts.steps,
+                per_step(counts.live),
+                per_step(counts.diffuse),
+                per_step(counts.glossy),
+                per_step(counts.delta),
+                per_step(counts.scalar)
+            );
+        }
+        return stats;
+    }
     let sampler = PixelSampler::new_in(isa, scene, settings, film.width(), film.height());
     let width = film.width() as usize;
     let rows_done = AtomicUsize::new(0);
@@ -399,6 +420,86 @@ fn trace_rows(
             run_row(isa, kernel, cancel, progress, &rows_done)
         })
         .reduce(RayStats::default, |a, b| a + b)
+}
+
+/// [`trace_rows`] through the lane path tracer (`crate::lane`), each row's
+/// samples one pool of paths run in `lane_isa`'s copy of its loop; each
+/// pixel adds its samples in sample order, so the sums do not depend on
+/// the thread count.
+#[allow(clippy::too_many_arguments, reason = "trace_rows' arguments and the lane tracer")]
+pub(crate) fn trace_rows_lanes(
+    lane_isa: LaneIsa,
+    tracer: &LaneTracer<'_>,
+    scene: &RenderScene,
+    settings: &RenderSettings,
+    film: &mut Film,
+    samples: Range<u32>,
+    progress: &(dyn Fn(usize) + Sync),
+    cancel: &AtomicBool,
+) -> (RayStats, LaneCounts) {
+    let sampler = PixelSampler::new_in(Isa::detect(), scene, settings, film.width(), film.height());
+    let width = film.width() as usize;
+    let rows_done = AtomicUsize::new(0);
+    film.sum
+        .par_chunks_mut(width.max(1))
+        .enumerate()
+        .map(|(row, pixels)| {
+            if cancel.load(Ordering::Relaxed) {
+                return (RayStats::default(), LaneCounts::default());
+            }
+            let kernel = LaneRow {
+                tracer,
+                sampler: &sampler,
+                row: row as u32,
+                pixels,
+                samples: samples.clone(),
+            };
+            let out = lane_isa.run(kernel);
+            progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
+            out
+        })
+        .reduce(
+            || (RayStats::default(), LaneCounts::default()),
+            |a, b| (a.0 + b.0, a.1 + b.1),
+        )
+}
+
+/// The samples of one row of [`trace_rows_lanes`]: one pool of paths.
+struct LaneRow<'r, 'a> {
+    tracer: &'r LaneTracer<'a>,
+    sampler: &'r PixelSampler<'a>,
+    row: u32,
+    pixels: &'r mut [ExactRgb],
+    samples: Range<u32>,
+}
+
+impl Kernel for LaneRow<'_, '_> {
+    type Output = (RayStats, LaneCounts);
+
+    #[inline(always)]
+    fn run(self) -> (RayStats, LaneCounts) {
+        let (mut stats, mut counts) = (RayStats::default(), LaneCounts::default());
+        let n = self.samples.len();
+        let row = self.row;
+        let keys: Vec<u64> = (0..self.pixels.len())
+            .map(|col| self.sampler.pixel_key(col as u32, row))
+            .collect();
+        let mut out = vec![Vec3::ZERO; self.pixels.len() * n];
+        let first = self.samples.start;
+        let start = |k: usize| {
+            let col = k / n.max(1);
+            let s = first + (k % n.max(1)) as u32;
+            let key = keys.get(col).copied().unwrap_or(0);
+            self.sampler.path_start_keyed(key, col as u32, row, s)
+        };
+        self.tracer.trace(start, &mut out, &mut stats, &mut counts);
+        for (px, radiance) in self.pixels.iter_mut().zip(out.chunks(n.max(1))) {
+            for r in radiance {
+                px.add_sample(*r);
+            }
+        }
+        (stats, counts)
+    }
 }
 
 /// Runs one row's `kernel` in `isa`'s copy of the loop unless `cancel` is

@@ -152,6 +152,13 @@ pub struct RenderSettings {
     /// render is then the ordinary denoised one. See
     /// [`RenderSettings::one_pass`].
     pub smooth: bool,
+    /// Path tracer: shade sixteen paths at a time in SIMD lanes
+    /// (`lucent_render`'s lane tracer; AVX-512 or AVX2 where the processor
+    /// has them) instead of one at a time. Experimental and off by default:
+    /// it renders the same image within noise, not the same bytes, and
+    /// only plain renders of scenes it supports use it (the others, and
+    /// progressive, AOV and one-pass renders, keep the scalar tracer).
+    pub lanes: bool,
 }
 
 impl RenderSettings {
@@ -182,6 +189,7 @@ impl Default for RenderSettings {
             free_delta_bounces: 0,
             lighting_scale: 1,
             smooth: false,
+            lanes: false,
         }
     }
 }
@@ -247,6 +255,9 @@ pub struct RenderOverrides {
     /// Smooth the reflected light with the edge-aware filter (path
     /// tracer).
     pub smooth: Option<bool>,
+    /// Shade sixteen paths at a time in SIMD lanes (path tracer;
+    /// experimental).
+    pub lanes: Option<bool>,
 }
 
 impl RenderOverrides {
@@ -267,6 +278,7 @@ impl RenderOverrides {
         free_delta_bounces: None,
         lighting_scale: None,
         smooth: None,
+        lanes: None,
     };
 
     /// Writes every setting that is `Some` into `settings`.
@@ -292,6 +304,7 @@ impl RenderOverrides {
         set(&mut s.free_delta_bounces, self.free_delta_bounces);
         set(&mut s.lighting_scale, self.lighting_scale);
         set(&mut s.smooth, self.smooth);
+        set(&mut s.lanes, self.lanes);
     }
 }
 
@@ -331,6 +344,7 @@ mod tests {
             free_delta_bounces: Some(9),
             lighting_scale: Some(10),
             smooth: Some(true),
+            lanes: Some(true),
         };
         all.apply(&mut s);
         let want = RenderSettings {
@@ -349,6 +363,7 @@ mod tests {
             free_delta_bounces: 9,
             lighting_scale: 10,
             smooth: true,
+            lanes: true,
         };
         assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
     }

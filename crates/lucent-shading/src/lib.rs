@@ -43,7 +43,7 @@ pub mod optics;
 pub mod phong;
 mod texture;
 
-pub use bsdf::{Bsdf, BsdfSample, Compiled, Frame, LocalDir, MixtureCode};
+pub use bsdf::{Bsdf, BsdfSample, Compiled, DeltaLobe, Frame, LocalDir, MixtureCode};
 pub use environment::{EnvironmentMap, EnvironmentMapError};
 pub use light::{Light, LightSample};
 pub use lucent_geom::{Vec2, Vec3};

@@ -158,6 +158,13 @@ struct QualityArgs {
     /// turns it off. With --denoise, the denoiser filters instead.
     #[arg(long, value_name = "BOOL", num_args = 0..=1, require_equals = true, default_missing_value = "true")]
     smooth: Option<bool>,
+    /// Path tracer, experimental: shade sixteen paths at a time in SIMD
+    /// lanes (AVX-512 or AVX2 where the processor has them). The same image
+    /// within noise, not the same bytes; scenes it does not support, and
+    /// progressive, AOV and one-pass renders, keep the scalar tracer.
+    /// `--lanes=false` turns it off.
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, require_equals = true, default_missing_value = "true")]
+    lanes: Option<bool>,
 }
 
 impl QualityArgs {
@@ -193,6 +200,7 @@ impl QualityArgs {
             free_delta_bounces: self.free_delta_bounces,
             lighting_scale: self.lighting_scale,
             smooth: self.smooth,
+            lanes: self.lanes,
             ..RenderOverrides::NONE
         }
     }

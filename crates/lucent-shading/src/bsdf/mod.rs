@@ -192,6 +192,15 @@ pub struct Bsdf {
     kind: Kind,
 }
 
+/// A BSDF that is one delta lobe alone ([`Bsdf::single_delta_lobe`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DeltaLobe {
+    /// A smooth mirror with Fresnel term 1, and its reflectance.
+    Mirror(Vec3),
+    /// A smooth dielectric: its tint and its index inside over outside.
+    Dielectric(Vec3, f32),
+}
+
 /// The cases of a mixture the path tracer asks about at every vertex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kind {
@@ -559,6 +568,52 @@ impl Bsdf {
     /// ```
     pub fn albedo(&self) -> Vec3 {
         (self.diffuse + self.glossy + self.conductor + self.dielectric).clamp(Vec3::ZERO, Vec3::ONE)
+    }
+
+    /// The albedo of a BSDF whose only lobe is a plain (uncoupled)
+    /// Lambertian one, as `sample` and `eval` use it; `None` for any other
+    /// mixture. For code that shades such BSDFs in batches.
+    #[inline]
+    pub fn lambertian_albedo(&self) -> Option<Vec3> {
+        self.only_diffuse().then_some(self.diffuse)
+    }
+
+    /// What a batch shader needs of a BSDF that is one delta lobe alone:
+    /// a smooth mirror whose Fresnel term is 1 (its reflectance), or a
+    /// smooth dielectric (its tint and relative index); `None` for any
+    /// other mixture. `sample` then reflects with weight `reflectance`
+    /// (the mirror), or reflects with probability `R` and weight `tint`
+    /// and refracts otherwise with weight `tint / eta_ti^2` (the
+    /// dielectric, `eta_ti` the index of the side entered over the side
+    /// left).
+    pub fn single_delta_lobe(&self) -> Option<DeltaLobe> {
+        let only = |k: usize| (0..4).all(|j| self.prob(j) == if j == k { 1.0 } else { 0.0 });
+        if self.kind != Kind::Delta {
+            return None;
+        }
+        if only(CONDUCTOR) && self.smooth_conductor() && !self.schlick {
+            return Some(DeltaLobe::Mirror(self.conductor));
+        }
+        if only(DIELECTRIC) {
+            return Some(DeltaLobe::Dielectric(self.dielectric, self.eta));
+        }
+        None
+    }
+
+    /// What a batch shader needs of a BSDF that is a Lambertian lobe beside
+    /// a rough GGX conductor with Fresnel 1 and nothing else (no Phong or
+    /// dielectric lobe, no layering): `(diffuse, conductor, alpha, c0,
+    /// c1)`, `c0` and `c1` the cumulative selection probabilities after
+    /// the diffuse and the conductor lobe (`sample` picks the diffuse lobe
+    /// for `u_lobe < c0`, the conductor for `c0 <= u_lobe < c1`); `None`
+    /// for any other mixture.
+    pub fn diffuse_and_rough_conductor(&self) -> Option<(Vec3, Vec3, f32, f32, f32)> {
+        let two = self.prob(DIFFUSE) > 0.0
+            && self.prob(GLOSSY) == 0.0
+            && self.prob(CONDUCTOR) > 0.0
+            && self.prob(DIELECTRIC) == 0.0;
+        let plain = !self.smooth_conductor() && !self.schlick && self.coupled_f0 < 0.0 && self.kind == Kind::Mixed;
+        (two && plain).then_some((self.diffuse, self.conductor, self.alpha, self.cdf[0], self.cdf[2]))
     }
 
     /// True when every lobe with weight is a delta: next-event estimation
