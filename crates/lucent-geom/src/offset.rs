@@ -77,16 +77,22 @@ pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, magnitude: f32) -> Vec3 {
 /// ```
 #[inline]
 pub fn offset_ray_origin_a(p: Vec3A, n: Vec3A, magnitude: f32) -> Vec3A {
-    // `k` is 1 for unit-size geometry, proportional to the size outside
-    // that range; NaN falls back to 1.
-    let k = if magnitude < ORIGIN_REGION {
+    let k = offset_scale(magnitude);
+    offset_axes(p, n, ORIGIN_REGION * k, FLOAT_SCALE * k)
+}
+
+/// The factor both offsets scale by for geometry of coordinate magnitude
+/// `magnitude`: 1 for unit-size geometry, proportional to the size outside
+/// that range; NaN falls back to 1.
+#[inline(always)]
+fn offset_scale(magnitude: f32) -> f32 {
+    if magnitude < ORIGIN_REGION {
         (magnitude / ORIGIN_REGION).max(0.0)
     } else if magnitude > UNIT_MAX {
         magnitude / UNIT_MAX
     } else {
         1.0
-    };
-    offset_axes(p, n, ORIGIN_REGION * k, FLOAT_SCALE * k)
+    }
 }
 
 /// One coordinate of [`offset_ray_origin_a`]: `pa` moved along `na` (the
@@ -98,13 +104,7 @@ pub fn offset_ray_origin_a(p: Vec3A, n: Vec3A, magnitude: f32) -> Vec3A {
 /// code: the lane path tracer's offset.
 #[inline(always)]
 pub fn offset_coord(pa: f32, na: f32, magnitude: f32) -> f32 {
-    let k = if magnitude < ORIGIN_REGION {
-        (magnitude / ORIGIN_REGION).max(0.0)
-    } else if magnitude > UNIT_MAX {
-        magnitude / UNIT_MAX
-    } else {
-        1.0
-    };
+    let k = offset_scale(magnitude);
     let near = pa + FLOAT_SCALE * k * na;
     // `INT_SCALE * na` rounded to the nearest integer by the float adder
     // (1.5 * 2^23 puts the units in the mantissa's last place), for
