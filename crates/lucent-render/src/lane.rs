@@ -67,6 +67,7 @@
 
 use crate::flat::FlatBvh;
 use crate::lights::SHADOW_SHORTEN;
+use crate::path::power_heuristic;
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
 use lucent_shading::{Bsdf, DeltaLobe, Frame, LocalDir, Material};
@@ -1453,13 +1454,6 @@ fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
     } else {
         r
     }
-}
-
-/// Veach's power heuristic, as the path tracer has it.
-#[inline(always)]
-fn power_heuristic(pdf: f32, other: f32) -> f32 {
-    let (a, b) = (pdf * pdf, other * other);
-    if a + b > 0.0 && a <= f32::MAX { a / (a + b) } else { 1.0 }
 }
 
 #[cfg(test)]

@@ -478,9 +478,10 @@ fn facing(n: Vec3, dir: Vec3) -> Vec3 {
     if n.dot(dir) > 0.0 { -n } else { n }
 }
 
-/// Veach's power heuristic (beta = 2) for two one-sample strategies.
-#[inline]
-fn power_heuristic(pdf: f32, other: f32) -> f32 {
+/// Veach's power heuristic (beta = 2) for two one-sample strategies (the
+/// lane tracer's too).
+#[inline(always)]
+pub(crate) fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let (a, b) = (pdf * pdf, other * other);
     // `a` is a square: finite exactly when it is at most f32::MAX (NaN
     // fails the comparison too).
