@@ -48,12 +48,14 @@ mod bvh;
 #[cfg(target_arch = "x86_64")]
 mod kernel;
 mod mesh_bvh;
+mod packet;
 mod scene_bvh;
 mod wide;
 
 pub use build::{BuildParams, BuildQuality};
 pub use bvh::{Bvh, BvhNode, BvhStats, MAX_DEPTH};
 pub use mesh_bvh::{MeshBvh, MeshHit, TraversalCounts};
+pub use packet::PACKET;
 pub use scene_bvh::{Instance, SceneBvh, SceneHit};
 
 use lucent_geom::{Aabb, TriMesh};

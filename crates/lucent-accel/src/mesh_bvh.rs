@@ -1,5 +1,6 @@
 //! A BVH over one triangle mesh (the bottom level).
 
+use crate::packet::{AnyPacket, ClosestPacket, PACKET, PacketQuery, Portable16, for_lanes};
 use crate::wide::{BoxTest, Leaves, Query, Tally, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{
@@ -118,6 +119,49 @@ fn pack_prefetch(packs: &[Pack], on: bool) -> Option<(*const u8, usize)> {
     on.then(|| (packs.as_ptr().cast(), PACK_LINES))
 }
 
+/// Where a packet query runs.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum PacketLanes {
+    /// Every ray alone, through the single-ray queries.
+    Alone,
+    /// The portable lanes (the reference; slow).
+    #[cfg_attr(not(test), allow(dead_code, reason = "the reference the tests run"))]
+    Portable,
+    /// The AVX-512 lanes.
+    #[cfg(target_arch = "x86_64")]
+    Avx512(crate::kernel::Avx512),
+}
+
+impl PacketLanes {
+    /// Runs `q` in these lanes (not [`PacketLanes::Alone`], which runs
+    /// nothing: the portable lanes then).
+    #[inline(always)]
+    fn run<Q: PacketQuery>(self, q: Q) -> Q::Output {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            PacketLanes::Avx512(k) => k.run(q),
+            PacketLanes::Alone | PacketLanes::Portable => q.run(Portable16),
+        }
+    }
+}
+
+/// The bound a closest-hit walk tests pack `pack` with, its best hit so
+/// far in slot `best` (`LANES * pack + lane`) at distance `t_bound`: a pack
+/// stored before the best hit's may still hit at that very distance (the
+/// next float up, since the tests keep `t < bound`), a later one must be
+/// strictly nearer. So among equally close hits the lowest slot wins
+/// whatever order the packs are visited in, which is what lets the packet
+/// walk ([`crate::packet`]) find the single-ray walk's hit, bit for bit.
+#[inline(always)]
+pub(crate) fn tie_bound(best: Option<usize>, pack: usize, t_bound: f32) -> f32 {
+    match best {
+        // A best hit's distance is finite and positive, so the next float
+        // up is its bit pattern plus one.
+        Some(slot) if pack < slot / LANES => f32::from_bits(t_bound.to_bits() + 1),
+        _ => t_bound,
+    }
+}
+
 const EMPTY_PACK: Pack = Pack {
     v: [[[f32::NAN; LANES]; 3]; 3],
     prim: [u32::MAX; LANES],
@@ -232,7 +276,12 @@ impl<L: LeafTest> Leaves for &mut ClosestLeaves<'_, L> {
         };
         for idx in first..first + count {
             let Some(pack) = self.packs.get(idx) else { break };
-            if let Some((lane, h)) = self.leaves.nearest(ray, &pack.v, *t_bound) {
+            // Among equally close hits the lowest slot wins, whatever order
+            // the walk visits the packs in (so a packet walk, which visits
+            // them in another order, finds the same hit): a pack before
+            // the best hit's may hit at the best distance itself.
+            let bound = tie_bound(self.best.as_ref().map(|b| b.0), idx, *t_bound);
+            if let Some((lane, h)) = self.leaves.nearest(ray, &pack.v, bound) {
                 *t_bound = h.t;
                 let prim = pack.prim[lane % LANES];
                 self.best = Some((
@@ -338,6 +387,10 @@ pub struct MeshBvh {
     /// that mesh has since been dropped it names nothing, and costs one
     /// prefetch that fetches nothing useful.
     hit_indices: usize,
+    /// The AVX-512 lanes of the packet walk, where the machine has them
+    /// and the vector kernels are on ([`MeshBvh::intersect_packet`]).
+    #[cfg(target_arch = "x86_64")]
+    packet: Option<crate::kernel::Avx512>,
 }
 
 /// The closest-hit query, run through [`MeshBvh::run`]; prefetching
@@ -441,6 +494,8 @@ impl MeshBvh {
             vector: true,
             prefetch,
             hit_indices: mesh.indices().as_ptr() as usize,
+            #[cfg(target_arch = "x86_64")]
+            packet: crate::kernel::Avx512::detect(),
         }
     }
 
@@ -467,6 +522,10 @@ impl MeshBvh {
     pub fn with_vector_kernel(mut self, on: bool) -> Self {
         self.wide.set_simd(on);
         self.vector = on;
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.packet = if on { crate::kernel::Avx512::detect() } else { None };
+        }
         self
     }
 
@@ -737,6 +796,107 @@ impl MeshBvh {
             t_max,
         };
         self.wide.walk_sized::<false, B, _, T>(boxes, ray, t_max, visit, tally)
+    }
+
+    /// The closest hits of up to [`PACKET`] rays at once: lane `l` of the
+    /// answer is [`MeshBvh::intersect`]`(&rays[l], t_max[l])` where bit `l`
+    /// of `active` is set, bit for bit, and `None` elsewhere.
+    ///
+    /// Rays that start near one another and point the same way (a
+    /// pixel's samples, shadow rays towards one light from neighbouring
+    /// points) are walked together as a packet on processors with AVX-512
+    /// (`crate::packet`): each node and triangle is then tested against all
+    /// of them at once. Rays whose direction signs or dominant axis differ
+    /// from the others' are walked in groups of their own, or alone where
+    /// their group is too small to pay, as are all of them without AVX-512,
+    /// with the vector kernels off or with Moller-Trumbore.
+    ///
+    /// ```
+    /// use lucent_accel::{BuildParams, MeshBvh, PACKET};
+    /// use lucent_geom::{shapes, Ray, Vec3};
+    /// let bvh = MeshBvh::build(&shapes::icosphere(3), &BuildParams::default());
+    /// let rays: [Ray; PACKET] =
+    ///     std::array::from_fn(|l| Ray::new(Vec3::new(-0.3 + 0.04 * l as f32, 0.1, -5.0), Vec3::Z));
+    /// let hits = bvh.intersect_packet(&rays, &[f32::INFINITY; PACKET], 0xffff);
+    /// for (ray, hit) in rays.iter().zip(hits) {
+    ///     assert_eq!(hit, bvh.intersect(ray, f32::INFINITY));
+    /// }
+    /// ```
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<MeshHit>; PACKET] {
+        self.intersect_packet_in(self.packet_lanes(), rays, t_max, active)
+    }
+
+    /// Whether anything is hit with `0 < t < t_max[l]` by each of up to
+    /// [`PACKET`] rays: bit `l` of the answer is
+    /// [`MeshBvh::occluded`]`(&rays[l], t_max[l])` where bit `l` of
+    /// `active` is set, and clear elsewhere. Rays are walked together as
+    /// [`MeshBvh::intersect_packet`] walks them.
+    pub fn occluded_packet(&self, rays: &[Ray; PACKET], t_max: &[f32; PACKET], active: u16) -> u16 {
+        self.occluded_packet_in(self.packet_lanes(), rays, t_max, active)
+    }
+
+    /// The lanes packet queries run in: AVX-512 where the processor has it
+    /// and this tree runs its vector kernels and the watertight test, else
+    /// none (every ray alone).
+    fn packet_lanes(&self) -> PacketLanes {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = self.packet
+            && self.test == TriangleTest::Watertight
+        {
+            return PacketLanes::Avx512(k);
+        }
+        PacketLanes::Alone
+    }
+
+    /// [`MeshBvh::intersect_packet`] in lanes `lanes`.
+    pub(crate) fn intersect_packet_in(
+        &self,
+        lanes: PacketLanes,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<MeshHit>; PACKET] {
+        if matches!(lanes, PacketLanes::Alone) {
+            let mut out = [None; PACKET];
+            for_lanes(active, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+            return out;
+        }
+        lanes.run(ClosestPacket {
+            mesh: self,
+            wide: &self.wide,
+            packs: &self.packs,
+            rays,
+            t_max,
+            active,
+        })
+    }
+
+    /// [`MeshBvh::occluded_packet`] in lanes `lanes`.
+    pub(crate) fn occluded_packet_in(
+        &self,
+        lanes: PacketLanes,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> u16 {
+        if matches!(lanes, PacketLanes::Alone) {
+            let mut out = 0u16;
+            for_lanes(active, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
+            return out;
+        }
+        lanes.run(AnyPacket {
+            mesh: self,
+            wide: &self.wide,
+            packs: &self.packs,
+            rays,
+            t_max,
+            active,
+        })
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular

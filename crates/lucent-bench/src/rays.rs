@@ -16,7 +16,7 @@ mod named_arg;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use lucent_accel::{BuildParams, BuildQuality, MeshBvh, TraversalCounts};
+use lucent_accel::{BuildParams, BuildQuality, MeshBvh, PACKET, TraversalCounts};
 use lucent_geom::{Named, Ray, TriMesh, TriangleTest, Vec3};
 use lucent_render::metrics::median;
 use lucent_render::with_threads;
@@ -67,6 +67,69 @@ pub struct RaysBenchArgs {
     /// (to compare the two in one binary).
     #[arg(long)]
     portable: bool,
+    /// Trace the rays in packets of sixteen consecutive ones
+    /// (`MeshBvh::intersect_packet`, `occluded_packet`): in a ray file of
+    /// a camera's rays in scanline order, sixteen neighbouring pixels.
+    #[arg(long)]
+    packets: bool,
+    /// Reorder a camera's ray file (scanline order, this many rays per
+    /// row) before tracing: `tiles` puts each 4x4 tile of pixels in sixteen
+    /// consecutive rays; `samples` replaces the rays by sixteen per pixel of
+    /// every fourth pixel in each direction, each aimed at a random point
+    /// of its pixel (the directions interpolated between the pixel's ray and
+    /// its right and lower neighbours'), as a pixel's samples are traced.
+    /// Hits are written in the traced order.
+    #[arg(long, value_name = "ORDER", requires = "width")]
+    order: Option<RayOrder>,
+    /// Rays per row of the camera's ray file, for --order.
+    #[arg(long, value_name = "N")]
+    width: Option<usize>,
+}
+
+/// How `--order` rearranges a camera's rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RayOrder {
+    /// 4x4 tiles of pixels, sixteen consecutive rays each.
+    Tiles,
+    /// Sixteen jittered rays per pixel (every fourth pixel each way).
+    Samples,
+}
+
+/// `rays` (a camera's, `width` per row, scanline order) in `order`.
+fn reorder(rays: &[Ray], width: usize, order: RayOrder) -> Result<Vec<Ray>> {
+    if width == 0 || !rays.len().is_multiple_of(width) {
+        bail!("--width {width} does not divide the {} rays into rows", rays.len());
+    }
+    let height = rays.len() / width;
+    let at = |x: usize, y: usize| rays[y.min(height - 1) * width + x.min(width - 1)];
+    let mut out = Vec::with_capacity(rays.len());
+    match order {
+        RayOrder::Tiles => {
+            for ty in (0..height).step_by(4) {
+                for tx in (0..width).step_by(4) {
+                    for y in ty..(ty + 4).min(height) {
+                        for x in tx..(tx + 4).min(width) {
+                            out.push(at(x, y));
+                        }
+                    }
+                }
+            }
+        }
+        RayOrder::Samples => {
+            let mut rng = lucent_geom::Pcg32::new(7, 7);
+            for y in (0..height).step_by(4) {
+                for x in (0..width).step_by(4) {
+                    let (r, right, down) = (at(x, y), at(x + 1, y), at(x, y + 1));
+                    for _ in 0..PACKET {
+                        let (u, v) = (rng.next_f32(), rng.next_f32());
+                        let dir = r.dir + (right.dir - r.dir) * u + (down.dir - r.dir) * v;
+                        out.push(Ray::new(r.origin, dir));
+                    }
+                }
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// `s` as a JSON string literal, quotes and escapes included.
@@ -79,7 +142,10 @@ const CHUNK: usize = 4096;
 
 pub fn run(args: RaysBenchArgs) -> Result<()> {
     let mesh = load_peer_mesh(&args.mesh)?;
-    let rays = read_rays(&args.rays)?;
+    let mut rays = read_rays(&args.rays)?;
+    if let (Some(order), Some(width)) = (args.order, args.width) {
+        rays = reorder(&rays, width, order)?;
+    }
     let (quality, test) = (args.quality, args.test);
     let threads = usize::from(args.threads);
     let params = BuildParams::for_quality(quality);
@@ -99,7 +165,7 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
     let bvh = bvh.with_triangle_test(test).with_vector_kernel(!args.portable);
 
     let mut hits = vec![Hit::MISS; rays.len()];
-    let trace_s = time_passes(args.reps, || trace(&bvh, &rays, &mut hits, threads));
+    let trace_s = time_passes(args.reps, || trace(&bvh, &rays, &mut hits, threads, args.packets));
     let n_hits = hits.iter().filter(|h| h.prim >= 0).count();
     let mut json = format!(
         "{{\"mesh\":{},\"rays_file\":{},\"triangles\":{},\"quality\":\"{}\",\"test\":\"{}\",\"kernel\":\"{}\",\"threads\":{},\
@@ -110,7 +176,11 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
         mesh.n_triangles(),
         quality.name(),
         test.name(),
-        if bvh.vector_kernel() { "avx2" } else { "portable" },
+        match (bvh.vector_kernel(), args.packets) {
+            (true, true) => "avx2+packets",
+            (true, false) => "avx2",
+            (false, _) => "portable",
+        },
         threads,
         build_s,
         rays.len(),
@@ -130,7 +200,7 @@ pub fn run(args: RaysBenchArgs) -> Result<()> {
     }
     if let Some(path) = &args.occluded {
         let mut occ = vec![0u8; rays.len()];
-        let occ_s = time_passes(args.reps, || occlude(&bvh, &rays, &mut occ, threads));
+        let occ_s = time_passes(args.reps, || occlude(&bvh, &rays, &mut occ, threads, args.packets));
         let n_occ = occ.iter().filter(|&&o| o != 0).count();
         json += &format!(
             ",\"occluded_s\":{:.5},\"occluded_mrays_s\":{:.3},\"occluded\":{}",
@@ -300,8 +370,30 @@ fn parallel_chunks<T: Send>(out: &mut [T], threads: usize, work: impl Fn(usize, 
     });
 }
 
-fn trace(bvh: &MeshBvh, rays: &[Ray], hits: &mut [Hit], threads: usize) {
+/// Sixteen rays from `rays` (the last repeated where fewer are left) and
+/// the mask of those that are there.
+fn packet_of(rays: &[Ray]) -> ([Ray; PACKET], u16) {
+    let last = rays.last().copied().unwrap_or(Ray::new(Vec3::ZERO, Vec3::Z));
+    let packet = std::array::from_fn(|l| rays.get(l).copied().unwrap_or(last));
+    (packet, (((1u32 << rays.len().min(PACKET)) - 1) & 0xffff) as u16)
+}
+
+fn trace(bvh: &MeshBvh, rays: &[Ray], hits: &mut [Hit], threads: usize, packets: bool) {
     parallel_chunks(hits, threads, |first, out| {
+        if packets {
+            for (k, chunk) in out.chunks_mut(PACKET).enumerate() {
+                let start = first + k * PACKET;
+                let (packet, active) = packet_of(&rays[start..(start + chunk.len()).min(rays.len())]);
+                let found = bvh.intersect_packet(&packet, &[f32::INFINITY; PACKET], active);
+                for (h, x) in chunk.iter_mut().zip(found) {
+                    *h = x.map_or(Hit::MISS, |x| Hit {
+                        t: x.t,
+                        prim: x.prim as i32,
+                    });
+                }
+            }
+            return;
+        }
         for (h, ray) in out.iter_mut().zip(&rays[first..]) {
             *h = bvh.intersect(ray, f32::INFINITY).map_or(Hit::MISS, |x| Hit {
                 t: x.t,
@@ -311,8 +403,19 @@ fn trace(bvh: &MeshBvh, rays: &[Ray], hits: &mut [Hit], threads: usize) {
     });
 }
 
-fn occlude(bvh: &MeshBvh, rays: &[Ray], occ: &mut [u8], threads: usize) {
+fn occlude(bvh: &MeshBvh, rays: &[Ray], occ: &mut [u8], threads: usize, packets: bool) {
     parallel_chunks(occ, threads, |first, out| {
+        if packets {
+            for (k, chunk) in out.chunks_mut(PACKET).enumerate() {
+                let start = first + k * PACKET;
+                let (packet, active) = packet_of(&rays[start..(start + chunk.len()).min(rays.len())]);
+                let hit = bvh.occluded_packet(&packet, &[f32::INFINITY; PACKET], active);
+                for (l, o) in chunk.iter_mut().enumerate() {
+                    *o = u8::from(hit >> l & 1 != 0);
+                }
+            }
+            return;
+        }
         for (o, ray) in out.iter_mut().zip(&rays[first..]) {
             *o = u8::from(bvh.occluded(ray, f32::INFINITY));
         }
