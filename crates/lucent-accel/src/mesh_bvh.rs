@@ -840,6 +840,13 @@ impl MeshBvh {
         self.occluded_packet_in(self.packet_lanes(), rays, t_max, active)
     }
 
+    /// Whether [`MeshBvh::intersect_packet`] and
+    /// [`MeshBvh::occluded_packet`] walk rays together here (AVX-512, the
+    /// vector kernels on, the watertight test), rather than one at a time.
+    pub fn walks_packets(&self) -> bool {
+        !matches!(self.packet_lanes(), PacketLanes::Alone)
+    }
+
     /// The lanes packet queries run in: AVX-512 where the processor has it
     /// and this tree runs its vector kernels and the watertight test, else
     /// none (every ray alone).

@@ -14,7 +14,7 @@
 //! shading code cannot tell the difference.
 
 use crate::RenderInstance;
-use lucent_accel::{BuildParams, MeshBvh, SceneHit};
+use lucent_accel::{BuildParams, MeshBvh, PACKET, SceneHit};
 use lucent_geom::{Ray, TriMesh, Vec3};
 use std::sync::Arc;
 
@@ -92,6 +92,44 @@ impl FlatBvh {
     #[inline]
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         self.bvh.occluded(ray, t_max)
+    }
+
+    /// [`FlatBvh::intersect`] of the rays of `active` among up to
+    /// [`PACKET`] at once ([`MeshBvh::intersect_packet`]: walked together
+    /// where they point alike, the same hits bit for bit).
+    #[inline]
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<SceneHit>; PACKET] {
+        self.bvh.intersect_packet(rays, t_max, active).map(|h| {
+            let h = h?;
+            let &(instance, prim) = self.owner.get(h.prim as usize)?;
+            Some(SceneHit {
+                t: h.t,
+                u: h.u,
+                v: h.v,
+                prim,
+                instance,
+            })
+        })
+    }
+
+    /// [`FlatBvh::occluded`] of the rays of `active` among up to
+    /// [`PACKET`] at once ([`MeshBvh::occluded_packet`]): bit `l` set where
+    /// ray `l` is blocked.
+    #[inline]
+    pub fn occluded_packet(&self, rays: &[Ray; PACKET], t_max: &[f32; PACKET], active: u16) -> u16 {
+        self.bvh.occluded_packet(rays, t_max, active)
+    }
+
+    /// Whether [`FlatBvh::intersect_packet`] walks rays together on this
+    /// processor (else it walks them one at a time, and a caller gains
+    /// nothing by gathering them).
+    pub fn walks_packets(&self) -> bool {
+        self.bvh.walks_packets()
     }
 
     /// The tree over the render-space triangles (its primitive indices are

@@ -123,6 +123,11 @@ impl<'a> PathTracer<'a> {
         }
     }
 
+    /// The scene's one-level tree, when it has one.
+    pub(crate) fn flat(&self) -> Option<&'a FlatBvh> {
+        self.flat.filter(|_| !self.scene.features.alpha_tested)
+    }
+
     /// Radiance along a camera ray, one path, random numbers from `rng`.
     /// Always inlined, so the render loop's AVX2 copy (`crate::isa`) has
     /// its own copy of the path.
@@ -130,12 +135,34 @@ impl<'a> PathTracer<'a> {
     pub fn trace_primary(&self, camera_ray: Ray, rng: &mut Pcg32, stats: &mut RayStats) -> Vec3 {
         let mut unused = AovSample::default();
         match (self.scene.features.emissive, self.scene.features.alpha_tested) {
-            (true, false) => self.trace::<true, false, false>(camera_ray, rng, stats, &mut unused),
-            (false, false) => self.trace::<false, false, false>(camera_ray, rng, stats, &mut unused),
+            (true, false) => self.trace::<true, false, false>(camera_ray, None, rng, stats, &mut unused),
+            (false, false) => self.trace::<false, false, false>(camera_ray, None, rng, stats, &mut unused),
             // Alpha-tested scenes take the general emissive code (which a
             // scene without emitters renders identically), so the mask
             // adds two variants, not four.
-            (_, true) => self.trace::<true, false, true>(camera_ray, rng, stats, &mut unused),
+            (_, true) => self.trace::<true, false, true>(camera_ray, None, rng, stats, &mut unused),
+        }
+    }
+
+    /// [`PathTracer::trace_primary`] of a camera ray whose closest hit
+    /// (`first`, from the flat tree or the scene's tree, as
+    /// [`PathTracer::trace_primary`] would find it) is already known: a
+    /// packet of camera rays traced together ([`FlatBvh::intersect_packet`]).
+    /// The same radiance, bit for bit. In a scene with alpha-tested
+    /// materials `first` is not used (the alpha test decides the hit).
+    #[inline(always)]
+    pub fn trace_primary_from(
+        &self,
+        camera_ray: Ray,
+        first: Option<SceneHit>,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+    ) -> Vec3 {
+        let mut unused = AovSample::default();
+        match (self.scene.features.emissive, self.scene.features.alpha_tested) {
+            (true, false) => self.trace::<true, false, false>(camera_ray, Some(first), rng, stats, &mut unused),
+            (false, false) => self.trace::<false, false, false>(camera_ray, Some(first), rng, stats, &mut unused),
+            (_, true) => self.trace::<true, false, true>(camera_ray, None, rng, stats, &mut unused),
         }
     }
 
@@ -150,9 +177,9 @@ impl<'a> PathTracer<'a> {
         aov: &mut AovSample,
     ) -> Vec3 {
         match (self.scene.features.emissive, self.scene.features.alpha_tested) {
-            (true, false) => self.trace::<true, true, false>(camera_ray, rng, stats, aov),
-            (false, false) => self.trace::<false, true, false>(camera_ray, rng, stats, aov),
-            (_, true) => self.trace::<true, true, true>(camera_ray, rng, stats, aov),
+            (true, false) => self.trace::<true, true, false>(camera_ray, None, rng, stats, aov),
+            (false, false) => self.trace::<false, true, false>(camera_ray, None, rng, stats, aov),
+            (_, true) => self.trace::<true, true, true>(camera_ray, None, rng, stats, aov),
         }
     }
 
@@ -164,12 +191,13 @@ impl<'a> PathTracer<'a> {
     fn trace<const EMISSIVE: bool, const AOV: bool, const MASKED: bool>(
         &self,
         camera_ray: Ray,
+        first: Option<Option<SceneHit>>,
         rng: &mut Pcg32,
         stats: &mut RayStats,
         aov: &mut AovSample,
     ) -> Vec3 {
         let mut rec = AovRecorder::new();
-        let radiance = self.trace_path::<EMISSIVE, AOV, MASKED>(camera_ray, rng, stats, aov, &mut rec);
+        let radiance = self.trace_path::<EMISSIVE, AOV, MASKED>(camera_ray, first, rng, stats, aov, &mut rec);
         if AOV {
             rec.end(aov, radiance);
         }
@@ -180,6 +208,7 @@ impl<'a> PathTracer<'a> {
     fn trace_path<const EMISSIVE: bool, const AOV: bool, const MASKED: bool>(
         &self,
         camera_ray: Ray,
+        mut first: Option<Option<SceneHit>>,
         rng: &mut Pcg32,
         stats: &mut RayStats,
         aov: &mut AovSample,
@@ -206,7 +235,12 @@ impl<'a> PathTracer<'a> {
         // Delta bounces among `depth` that do not count toward the limit.
         let mut free = 0u32;
         loop {
-            let Some(sh) = self.intersect::<MASKED>(&ray) else {
+            // The camera ray's hit where the caller traced it already.
+            let found = match first.take() {
+                Some(hit) => hit,
+                None => self.intersect::<MASKED>(&ray),
+            };
+            let Some(sh) = found else {
                 let le = match lights.environment() {
                     Some(env) => {
                         let le = env.eval(ray.dir);

@@ -1,11 +1,13 @@
 //! The parallel, deterministic render loop.
 
 use crate::aov::{AovFilm, AovSample, DeltaLightSums, SpecularSums};
+use crate::flat::FlatBvh;
 use crate::isa::{Isa, Kernel, LaneIsa};
 use crate::lane::{LaneCounts, LaneTracer};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{ExactRgb, Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
+use lucent_accel::PACKET;
 use lucent_geom::{DVec3, Pcg32, Ray, Vec3, hash_u64, hash_u64_from};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -344,6 +346,19 @@ impl<'a> PixelSampler<'a> {
         (self.camera.ray(col as f32 + jx, row as f32 + jy), rng)
     }
 
+    /// The path tracer and its flat tree, where camera rays are worth
+    /// tracing in packets ([`FlatBvh::intersect_packet`] walks them
+    /// together on this processor, and no alpha test decides hits): a
+    /// row's samples then trace their camera rays sixteen at a time
+    /// ([`Row`]), which finds the same hits, so the same image bit for bit.
+    #[inline(always)]
+    fn camera_packets(&self) -> Option<(&PathTracer<'a>, &'a FlatBvh)> {
+        match &self.tracer {
+            Tracer::Path(path) => path.flat().filter(|f| f.walks_packets()).map(|f| (path, f)),
+            Tracer::Whitted(_) => None,
+        }
+    }
+
     /// Radiance of sample `s` of pixel (`col`, `row`).
     #[inline(always)]
     pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
@@ -535,6 +550,37 @@ impl Kernel for Row<'_, '_> {
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
         let isa = self.sampler.isa();
+        if let Some((path, flat)) = self.sampler.camera_packets() {
+            // The row's samples in order (pixel by pixel, each pixel's in
+            // sample order), sixteen at a time: their camera rays traced
+            // together, then each path on from its hit, added to its pixel
+            // in that same order.
+            let per_pixel = self.samples.len();
+            let total = self.pixels.len() * per_pixel;
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
+            let mut rngs: [Pcg32; PACKET] = std::array::from_fn(|_| Pcg32::new(0, 0));
+            let mut cols = [0usize; PACKET];
+            let mut at = 0;
+            while at < total {
+                let n = PACKET.min(total - at);
+                for l in 0..n {
+                    let (col, s) = ((at + l) / per_pixel, self.samples.start + ((at + l) % per_pixel) as u32);
+                    let key = self.sampler.pixel_key(col as u32, self.row);
+                    (rays[l], rngs[l]) = self.sampler.path_start_keyed(key, col as u32, self.row, s);
+                    cols[l] = col;
+                }
+                let active = (((1u32 << n) - 1) & 0xffff) as u16;
+                let hits = flat.intersect_packet(&rays, &[f32::INFINITY; PACKET], active);
+                for l in 0..n {
+                    let v = path.trace_primary_from(rays[l], hits[l], &mut rngs[l], &mut stats);
+                    if let Some(px) = self.pixels.get_mut(cols[l]) {
+                        isa.add_sample(px, v);
+                    }
+                }
+                at += n;
+            }
+            return stats;
+        }
         for (col, px) in self.pixels.iter_mut().enumerate() {
             let (col, row) = (col as u32, self.row);
             let key = self.sampler.pixel_key(col, row);
