@@ -873,14 +873,15 @@ impl MeshBvh {
             for_lanes(active, |l| out[l] = self.intersect(&rays[l], t_max[l]));
             return out;
         }
-        lanes.run(ClosestPacket {
-            mesh: self,
+        let (mut out, alone) = lanes.run(ClosestPacket {
             wide: &self.wide,
             packs: &self.packs,
             rays,
             t_max,
             active,
-        })
+        });
+        for_lanes(alone, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+        out
     }
 
     /// [`MeshBvh::occluded_packet`] in lanes `lanes`.
@@ -896,14 +897,15 @@ impl MeshBvh {
             for_lanes(active, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
             return out;
         }
-        lanes.run(AnyPacket {
-            mesh: self,
+        let (mut out, alone) = lanes.run(AnyPacket {
             wide: &self.wide,
             packs: &self.packs,
             rays,
             t_max,
             active,
-        })
+        });
+        for_lanes(alone, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
+        out
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular

@@ -35,7 +35,7 @@
 //! for bit. Without AVX-512, or with the vector kernels off, the packet
 //! queries walk their rays one at a time.
 
-use crate::mesh_bvh::{LANES as PACK_LANES, MeshBvh, MeshHit, Pack};
+use crate::mesh_bvh::{LANES as PACK_LANES, MeshHit, Pack};
 use crate::wide::{
     FAR_SCALE, LEAF_BIT, MEDIUM_DEPTH, NEAR_SCALE, SMALL_DEPTH, W, WideBvh, WideNode, leaf_range, stack_size,
 };
@@ -770,7 +770,6 @@ pub(crate) fn for_lanes(mut mask: u16, mut f: impl FnMut(usize)) {
 /// rays' constants in lanes, their groups, each group's walk (or each ray
 /// of a group too small to pay alone), the hits refined.
 pub(crate) struct ClosestPacket<'a> {
-    pub(crate) mesh: &'a MeshBvh,
     pub(crate) wide: &'a WideBvh,
     pub(crate) packs: &'a [Pack],
     pub(crate) rays: &'a [Ray; PACKET],
@@ -779,10 +778,13 @@ pub(crate) struct ClosestPacket<'a> {
 }
 
 impl PacketQuery for ClosestPacket<'_> {
-    type Output = [Option<MeshHit>; PACKET];
+    /// The hits of the rays walked in packets, and the traceable rays left
+    /// to walk alone.
+    type Output = ([Option<MeshHit>; PACKET], u16);
     #[inline(always)]
     fn run<L: Lanes>(self, lanes: L) -> Self::Output {
         let mut out = [None; PACKET];
+        let mut alone = 0u16;
         let rays = Rays::new(lanes, self.rays, self.active);
         let t_max = lanes.load(self.t_max);
         let mut todo = rays.traceable;
@@ -798,7 +800,9 @@ impl PacketQuery for ClosestPacket<'_> {
                 }
             }
             let Some(p) = p else {
-                for_lanes(group, |l| out[l] = self.mesh.intersect(&self.rays[l], self.t_max[l]));
+                // Walked alone by the caller, outside the lanes' function
+                // (compiled into it, the single-ray walk ran slower).
+                alone |= group;
                 continue;
             };
             let depth = self.wide.depth;
@@ -829,13 +833,12 @@ impl PacketQuery for ClosestPacket<'_> {
                 out[l] = Some(refine(self.packs, &self.rays[l], slot, hit, self.t_max[l]));
             }
         }
-        out
+        (out, alone)
     }
 }
 
 /// The any-hit packet query (`MeshBvh::occluded_packet`), whole.
 pub(crate) struct AnyPacket<'a> {
-    pub(crate) mesh: &'a MeshBvh,
     pub(crate) wide: &'a WideBvh,
     pub(crate) packs: &'a [Pack],
     pub(crate) rays: &'a [Ray; PACKET],
@@ -844,11 +847,13 @@ pub(crate) struct AnyPacket<'a> {
 }
 
 impl PacketQuery for AnyPacket<'_> {
-    /// The rays hit.
-    type Output = u16;
+    /// The rays walked in packets that hit, and the traceable rays left to
+    /// walk alone.
+    type Output = (u16, u16);
     #[inline(always)]
-    fn run<L: Lanes>(self, lanes: L) -> u16 {
+    fn run<L: Lanes>(self, lanes: L) -> (u16, u16) {
         let mut out = 0u16;
+        let mut alone = 0u16;
         let rays = Rays::new(lanes, self.rays, self.active);
         let t_max = lanes.load(self.t_max);
         let mut todo = rays.traceable;
@@ -864,9 +869,9 @@ impl PacketQuery for AnyPacket<'_> {
                 }
             }
             let Some(p) = p else {
-                for_lanes(group, |l| {
-                    out |= u16::from(self.mesh.occluded(&self.rays[l], self.t_max[l])) << l
-                });
+                // Walked alone by the caller, outside the lanes' function
+                // (compiled into it, the single-ray walk ran slower).
+                alone |= group;
                 continue;
             };
             let depth = self.wide.depth;
@@ -878,7 +883,7 @@ impl PacketQuery for AnyPacket<'_> {
                 any::<L, { stack_size(crate::MAX_DEPTH) }>(lanes, self.wide, self.packs, &p, t_max, group)
             };
         }
-        out
+        (out, alone)
     }
 }
 
