@@ -63,13 +63,71 @@ use crate::aov::{AovRecorder, AovSample};
 use crate::flat::FlatBvh;
 use crate::interaction::SurfaceInteraction;
 use crate::isa::Isa;
+use crate::lights::LightSample;
 use crate::{RayStats, RenderScene, RenderSettings};
-use lucent_accel::SceneHit;
+use lucent_accel::{PACKET, SceneHit};
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A};
 use lucent_shading::{Bsdf, Frame, LocalDir, Material};
 
 /// Highest survival probability of Russian roulette.
 const RR_MAX_SURVIVAL: f32 = 0.95;
+
+/// The least density (per steradian) of a sampled direction whose lobe
+/// [`PathTracer::trace_batch`] counts as narrow: its rays stay close to
+/// those of the batch's other paths that took it (a near-mirror GGX lobe
+/// of roughness 0.1 samples densities of hundreds; a Lambertian lobe at
+/// most 1/pi). Delta lobes are narrow too.
+const NARROW_PDF: f32 = 10.0;
+
+/// A path between its vertices: the segment it is on, what it carries,
+/// and what weighing emission found at the next vertex needs.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PathState {
+    /// The segment to trace next.
+    ray: Ray,
+    /// Four-wide (the fourth lane means nothing): each lane makes the
+    /// three-float products and sums, in their order.
+    throughput: Vec3A,
+    radiance: Vec3A,
+    /// The previous vertex, for weighting emission found by BSDF sampling.
+    prev_p: Vec3,
+    prev_pdf: f32,
+    prev_delta: bool,
+    /// Product of the squared relative indices of refraction crossed.
+    eta_scale: f32,
+    /// Segments traced so far.
+    depth: u32,
+    /// Delta bounces among `depth` that do not count toward the limit.
+    free: u32,
+}
+
+impl PathState {
+    /// A path starting with `camera_ray`.
+    #[inline(always)]
+    pub(crate) fn new(camera_ray: Ray) -> Self {
+        Self {
+            ray: camera_ray,
+            throughput: Vec3A::ONE,
+            radiance: Vec3A::ZERO,
+            prev_p: camera_ray.origin,
+            prev_pdf: 0.0,
+            prev_delta: true,
+            eta_scale: 1.0,
+            depth: 0,
+            free: 0,
+        }
+    }
+}
+
+/// A light sample's shadow ray left to the caller of a vertex
+/// (`PathTracer::vertex` with `DEFER`), and the light it adds to the
+/// path's radiance where nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ShadowTest {
+    ray: Ray,
+    t_max: f32,
+    light: Vec3A,
+}
 
 /// A path tracer over one scene with fixed settings.
 pub struct PathTracer<'a> {
@@ -135,34 +193,133 @@ impl<'a> PathTracer<'a> {
     pub fn trace_primary(&self, camera_ray: Ray, rng: &mut Pcg32, stats: &mut RayStats) -> Vec3 {
         let mut unused = AovSample::default();
         match (self.scene.features.emissive, self.scene.features.alpha_tested) {
-            (true, false) => self.trace::<true, false, false>(camera_ray, None, rng, stats, &mut unused),
-            (false, false) => self.trace::<false, false, false>(camera_ray, None, rng, stats, &mut unused),
+            (true, false) => self.trace::<true, false, false>(camera_ray, rng, stats, &mut unused),
+            (false, false) => self.trace::<false, false, false>(camera_ray, rng, stats, &mut unused),
             // Alpha-tested scenes take the general emissive code (which a
             // scene without emitters renders identically), so the mask
             // adds two variants, not four.
-            (_, true) => self.trace::<true, false, true>(camera_ray, None, rng, stats, &mut unused),
+            (_, true) => self.trace::<true, false, true>(camera_ray, rng, stats, &mut unused),
         }
     }
 
-    /// [`PathTracer::trace_primary`] of a camera ray whose closest hit
-    /// (`first`, from the flat tree or the scene's tree, as
-    /// [`PathTracer::trace_primary`] would find it) is already known: a
-    /// packet of camera rays traced together ([`FlatBvh::intersect_packet`]).
-    /// The same radiance, bit for bit. In a scene with alpha-tested
-    /// materials `first` is not used (the alpha test decides the hit).
+    /// The paths of the camera rays `rays[l]` for the lanes `l` of
+    /// `active`, each with its random stream `rngs[l]`, traced together
+    /// vertex by vertex through the flat tree `flat` (this tracer's, from
+    /// [`PathTracer::flat`]): at each vertex the live paths' shadow rays
+    /// and then their next segments are traced as packets
+    /// ([`FlatBvh::occluded_packet`], [`FlatBvh::intersect_packet`]), which
+    /// walk together the rays that point alike (a pixel's camera rays,
+    /// shadow rays towards one light, reflections off one mirror) and the
+    /// others one by one. Each path makes the very operations and draws of
+    /// [`PathTracer::trace_primary`], in the same order, so `out[l]` is its
+    /// radiance bit for bit.
     #[inline(always)]
-    pub fn trace_primary_from(
+    pub(crate) fn trace_batch(
         &self,
-        camera_ray: Ray,
-        first: Option<SceneHit>,
-        rng: &mut Pcg32,
+        flat: &FlatBvh,
+        rays: &[Ray; PACKET],
+        active: u16,
+        rngs: &mut [Pcg32; PACKET],
         stats: &mut RayStats,
-    ) -> Vec3 {
-        let mut unused = AovSample::default();
-        match (self.scene.features.emissive, self.scene.features.alpha_tested) {
-            (true, false) => self.trace::<true, false, false>(camera_ray, Some(first), rng, stats, &mut unused),
-            (false, false) => self.trace::<false, false, false>(camera_ray, Some(first), rng, stats, &mut unused),
-            (_, true) => self.trace::<true, false, true>(camera_ray, None, rng, stats, &mut unused),
+        out: &mut [Vec3; PACKET],
+    ) {
+        if self.scene.features.emissive {
+            self.trace_batch_as::<true>(flat, rays, active, rngs, stats, out);
+        } else {
+            self.trace_batch_as::<false>(flat, rays, active, rngs, stats, out);
+        }
+    }
+
+    /// [`PathTracer::trace_batch`] for a scene with emitters or not.
+    #[inline(always)]
+    fn trace_batch_as<const EMISSIVE: bool>(
+        &self,
+        flat: &FlatBvh,
+        rays: &[Ray; PACKET],
+        active: u16,
+        rngs: &mut [Pcg32; PACKET],
+        stats: &mut RayStats,
+        out: &mut [Vec3; PACKET],
+    ) {
+        *out = [Vec3::ZERO; PACKET];
+        if self.max_depth == 0 {
+            return;
+        }
+        stats.primary += u64::from(active.count_ones());
+        let mut paths = rays.map(PathState::new);
+        let (mut unused, mut rec) = (AovSample::default(), AovRecorder::new());
+        let mut segments = *rays;
+        let mut hits = flat.intersect_packet(&segments, &[f32::INFINITY; PACKET], active);
+        let mut shadow_rays = *rays;
+        let mut shadow_t = [0.0f32; PACKET];
+        let mut lights = [Vec3A::ZERO; PACKET];
+        // The paths in the batch: those whose every bounce so far took a
+        // narrow lobe. Their vertices lie close together (a pixel's
+        // samples are a batch), so their shadow rays and next segments
+        // point alike and are traced as packets; a path whose rays part
+        // ways from the others' goes on alone.
+        let mut live = active;
+        while live != 0 {
+            let (mut tests, mut next) = (0u16, 0u16);
+            let mut lanes = live;
+            while lanes != 0 {
+                let l = lanes.trailing_zeros() as usize % PACKET;
+                lanes &= lanes - 1;
+                let (shadow, alive) = self.vertex::<EMISSIVE, false, false, true>(
+                    &mut paths[l],
+                    hits[l],
+                    &mut rngs[l],
+                    stats,
+                    &mut unused,
+                    &mut rec,
+                );
+                if let Some(test) = shadow {
+                    (shadow_rays[l], shadow_t[l], lights[l]) = (test.ray, test.t_max, test.light);
+                    tests |= 1 << l;
+                }
+                if alive {
+                    segments[l] = paths[l].ray;
+                    next |= 1 << l;
+                }
+            }
+            if tests != 0 {
+                let mut lit = tests & !flat.occluded_packet(&shadow_rays, &shadow_t, tests);
+                while lit != 0 {
+                    let l = lit.trailing_zeros() as usize % PACKET;
+                    lit &= lit - 1;
+                    paths[l].radiance += lights[l];
+                }
+            }
+            // A path whose bounce took a wide lobe leaves the batch: the
+            // rest of it, one vertex after another, in the one-path loop.
+            live = next;
+            let mut lanes = live;
+            while lanes != 0 {
+                let l = lanes.trailing_zeros() as usize % PACKET;
+                lanes &= lanes - 1;
+                if !(paths[l].prev_delta || paths[l].prev_pdf >= NARROW_PDF) {
+                    live &= !(1 << l);
+                    let found = flat.intersect(&segments[l], f32::INFINITY);
+                    self.go_on::<EMISSIVE, false, false>(
+                        &mut paths[l],
+                        found,
+                        &mut rngs[l],
+                        stats,
+                        &mut unused,
+                        &mut rec,
+                    );
+                }
+            }
+            if live == 0 {
+                break;
+            }
+            hits = flat.intersect_packet(&segments, &[f32::INFINITY; PACKET], live);
+        }
+        let mut lanes = active;
+        while lanes != 0 {
+            let l = lanes.trailing_zeros() as usize % PACKET;
+            lanes &= lanes - 1;
+            out[l] = paths[l].radiance.into();
         }
     }
 
@@ -177,9 +334,9 @@ impl<'a> PathTracer<'a> {
         aov: &mut AovSample,
     ) -> Vec3 {
         match (self.scene.features.emissive, self.scene.features.alpha_tested) {
-            (true, false) => self.trace::<true, true, false>(camera_ray, None, rng, stats, aov),
-            (false, false) => self.trace::<false, true, false>(camera_ray, None, rng, stats, aov),
-            (_, true) => self.trace::<true, true, true>(camera_ray, None, rng, stats, aov),
+            (true, false) => self.trace::<true, true, false>(camera_ray, rng, stats, aov),
+            (false, false) => self.trace::<false, true, false>(camera_ray, rng, stats, aov),
+            (_, true) => self.trace::<true, true, true>(camera_ray, rng, stats, aov),
         }
     }
 
@@ -191,13 +348,12 @@ impl<'a> PathTracer<'a> {
     fn trace<const EMISSIVE: bool, const AOV: bool, const MASKED: bool>(
         &self,
         camera_ray: Ray,
-        first: Option<Option<SceneHit>>,
         rng: &mut Pcg32,
         stats: &mut RayStats,
         aov: &mut AovSample,
     ) -> Vec3 {
         let mut rec = AovRecorder::new();
-        let radiance = self.trace_path::<EMISSIVE, AOV, MASKED>(camera_ray, first, rng, stats, aov, &mut rec);
+        let radiance = self.trace_path::<EMISSIVE, AOV, MASKED>(camera_ray, rng, stats, aov, &mut rec);
         if AOV {
             rec.end(aov, radiance);
         }
@@ -208,227 +364,291 @@ impl<'a> PathTracer<'a> {
     fn trace_path<const EMISSIVE: bool, const AOV: bool, const MASKED: bool>(
         &self,
         camera_ray: Ray,
-        mut first: Option<Option<SceneHit>>,
         rng: &mut Pcg32,
         stats: &mut RayStats,
         aov: &mut AovSample,
         rec: &mut AovRecorder,
     ) -> Vec3 {
+        if self.max_depth == 0 {
+            return Vec3::ZERO;
+        }
+        stats.primary += 1;
+        let mut path = PathState::new(camera_ray);
+        let found = self.intersect::<MASKED>(&path.ray);
+        self.go_on::<EMISSIVE, AOV, MASKED>(&mut path, found, rng, stats, aov, rec);
+        path.radiance.into()
+    }
+
+    /// `path` on to its end, one vertex after another, from the hit its
+    /// ray `found`.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the path's state, its random stream and the recorders"
+    )]
+    #[inline(always)]
+    fn go_on<const EMISSIVE: bool, const AOV: bool, const MASKED: bool>(
+        &self,
+        path: &mut PathState,
+        mut found: Option<SceneHit>,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+        aov: &mut AovSample,
+        rec: &mut AovRecorder,
+    ) {
+        while self
+            .vertex::<EMISSIVE, AOV, MASKED, false>(path, found, rng, stats, aov, rec)
+            .1
+        {
+            found = self.intersect::<MASKED>(&path.ray);
+        }
+    }
+
+    /// One vertex of `path`: the surface its ray `found` (or the
+    /// environment it leaves to), its emission, the light sample and the
+    /// next segment. Returns the light sample's shadow ray and what it adds
+    /// where nothing blocks it, and whether the path goes on (`path.ray`
+    /// is then its next segment).
+    ///
+    /// With `DEFER` the shadow ray is left to the caller, who adds its
+    /// light to `path.radiance` when nothing blocks it, before the path's
+    /// next vertex ([`PathTracer::trace_batch`], which traces sixteen
+    /// paths' shadow rays together); without, it is traced here and the
+    /// first value is `None`. The radiance gets the same additions in the
+    /// same order either way (the next segment's sampling does not read
+    /// it), so the sum is the same bits. `DEFER` is for plain renders
+    /// (no AOVs, which record the radiance after the light sample).
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the path's state, its random stream and the recorders"
+    )]
+    #[inline(always)]
+    fn vertex<const EMISSIVE: bool, const AOV: bool, const MASKED: bool, const DEFER: bool>(
+        &self,
+        path: &mut PathState,
+        found: Option<SceneHit>,
+        rng: &mut Pcg32,
+        stats: &mut RayStats,
+        aov: &mut AovSample,
+        rec: &mut AovRecorder,
+    ) -> (Option<ShadowTest>, bool) {
         let scene = self.scene;
         let lights = &scene.light_set;
-        // Four-wide (the fourth lane means nothing): each lane makes the
-        // three-float products and sums, in their order.
-        let mut radiance = Vec3A::ZERO;
-        if self.max_depth == 0 {
-            return radiance.into();
-        }
-        let mut throughput = Vec3A::ONE;
-        let mut ray = camera_ray;
-        stats.primary += 1;
-        // The previous vertex, for weighting emission found by BSDF sampling.
-        let mut prev_p = ray.origin;
-        let mut prev_pdf = 0.0f32;
-        let mut prev_delta = true;
-        // Product of the squared relative indices of refraction crossed.
-        let mut eta_scale = 1.0f32;
-        let mut depth = 0u32;
-        // Delta bounces among `depth` that do not count toward the limit.
-        let mut free = 0u32;
-        loop {
-            // The camera ray's hit where the caller traced it already.
-            let found = match first.take() {
-                Some(hit) => hit,
-                None => self.intersect::<MASKED>(&ray),
-            };
-            let Some(sh) = found else {
-                let le = match lights.environment() {
-                    Some(env) => {
-                        let le = env.eval(ray.dir);
-                        let w = if prev_delta {
-                            1.0
-                        } else {
-                            power_heuristic(prev_pdf, lights.pdf_environment(ray.dir))
-                        };
-                        radiance += self.clamped(throughput * Vec3A::from(le) * w, depth >= 2);
-                        le
-                    }
-                    None => Vec3::ZERO,
-                };
-                if AOV && rec.pending() {
-                    rec.miss(aov, le);
-                }
-                break;
-            };
-            let Some(hit) = SurfaceInteraction::from_hit::<false>(&scene.meshes, &scene.instances, &sh) else {
-                break;
-            };
-
-            // Emission found by the path itself.
-            if EMISSIVE && let Some((index, emitter)) = lights.emitter(sh.instance, sh.prim) {
-                let le = lights.emitted(emitter, -ray.dir, hit.uv);
-                if le != Vec3::ZERO {
-                    let w = if prev_delta {
+        let PathState {
+            ray,
+            throughput,
+            radiance,
+            prev_p,
+            prev_pdf,
+            prev_delta,
+            eta_scale,
+            depth,
+            free,
+        } = path;
+        let (ray, throughput, radiance) = (&mut *ray, &mut *throughput, &mut *radiance);
+        let mut deferred = None;
+        let Some(sh) = found else {
+            let le = match lights.environment() {
+                Some(env) => {
+                    let le = env.eval(ray.dir);
+                    let w = if *prev_delta {
                         1.0
                     } else {
-                        power_heuristic(prev_pdf, lights.pdf_emitter(index, prev_p, hit.p))
+                        power_heuristic(*prev_pdf, lights.pdf_environment(ray.dir))
                     };
-                    radiance += self.clamped(throughput * Vec3A::from(le) * w, depth >= 2);
+                    *radiance += self.clamped(*throughput * Vec3A::from(le) * w, *depth >= 2);
+                    le
                 }
-            }
-            if depth - free + 1 >= self.max_depth {
-                if AOV
-                    && rec.pending()
-                    && let Some((bsdf, material)) = self.bsdf_at(&hit, &mut None)
-                {
-                    let n = hit.mapped_normal(material);
-                    rec.surface(aov, sh.t, facing(n, ray.dir), bsdf.albedo(), bsdf.is_delta());
-                }
-                break;
-            }
-            let mut varying = None;
-            let Some((bsdf, material)) = self.bsdf_at(&hit, &mut varying) else {
-                break;
+                None => Vec3::ZERO,
             };
-            let shading_normal = hit.mapped_normal(material);
             if AOV && rec.pending() {
-                rec.surface(
-                    aov,
-                    sh.t,
-                    facing(shading_normal, ray.dir),
-                    bsdf.albedo(),
-                    bsdf.is_delta(),
-                );
+                rec.miss(aov, le);
             }
-            let frame = Frame::from_normal(shading_normal);
-            let wo = frame.to_local(-ray.dir);
-            // Normalised once for every BSDF call below; a direction in the
-            // surface plane scatters nothing (no light sample could count
-            // and no BSDF sample exists), so the path ends there.
-            let Some(wo_unit) = LocalDir::new(wo) else {
-                break;
-            };
+            return (None, false);
+        };
+        let Some(hit) = SurfaceInteraction::from_hit::<false>(&scene.meshes, &scene.instances, &sh) else {
+            return (None, false);
+        };
 
-            // The point and the geometric normal four-wide, as the light
-            // sample and the ray offsets take them.
-            let (p, ng) = (Vec3A::from(hit.p), Vec3A::from(hit.ng));
-            // The hit point pushed off the surface to the side a shadow ray
-            // left into, kept for the next segment if it leaves there too.
-            let mut lifted: Option<(bool, Vec3A)> = None;
+        // Emission found by the path itself.
+        if EMISSIVE && let Some((index, emitter)) = lights.emitter(sh.instance, sh.prim) {
+            let le = lights.emitted(emitter, -ray.dir, hit.uv);
+            if le != Vec3::ZERO {
+                let w = if *prev_delta {
+                    1.0
+                } else {
+                    power_heuristic(*prev_pdf, lights.pdf_emitter(index, *prev_p, hit.p))
+                };
+                *radiance += self.clamped(*throughput * Vec3A::from(le) * w, *depth >= 2);
+            }
+        }
+        if *depth - *free + 1 >= self.max_depth {
+            if AOV
+                && rec.pending()
+                && let Some((bsdf, material)) = self.bsdf_at(&hit, &mut None)
+            {
+                let n = hit.mapped_normal(material);
+                rec.surface(aov, sh.t, facing(n, ray.dir), bsdf.albedo(), bsdf.is_delta());
+            }
+            return (None, false);
+        }
+        let mut varying = None;
+        let Some((bsdf, material)) = self.bsdf_at(&hit, &mut varying) else {
+            return (None, false);
+        };
+        let shading_normal = hit.mapped_normal(material);
+        if AOV && rec.pending() {
+            rec.surface(
+                aov,
+                sh.t,
+                facing(shading_normal, ray.dir),
+                bsdf.albedo(),
+                bsdf.is_delta(),
+            );
+        }
+        let frame = Frame::from_normal(shading_normal);
+        let wo = frame.to_local(-ray.dir);
+        // Normalised once for every BSDF call below; a direction in the
+        // surface plane scatters nothing (no light sample could count
+        // and no BSDF sample exists), so the path ends there.
+        let Some(wo_unit) = LocalDir::new(wo) else {
+            return (None, false);
+        };
 
-            // At the guide surface, the AOV variant also gathers every
-            // point and directional light (see `aov`'s module docs): a
-            // shadow ray each, no random numbers, so the path is unchanged.
-            let at_guide = AOV && rec.at_guide() && !bsdf.is_delta();
-            if at_guide {
-                for i in 0..lights.delta_light_count() {
-                    if let Some(ls) = lights.delta_light(i, p)
-                        && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
-                    {
-                        let f = bsdf.eval_pdf_in(self.isa, wo_unit, wi).0;
-                        if f != Vec3::ZERO {
-                            stats.shadow += 1;
-                            let origin = hit.offset_a(p, if ls.wi.dot(ng) >= 0.0 { ng } else { -ng });
-                            if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
-                                && !self.occluded::<MASKED>(&shadow_ray, t_max)
-                            {
-                                let c = throughput * Vec3A::from(f) * Vec3A::from(ls.value);
-                                aov.delta_lights += Vec3::from(self.clamped(c, depth >= 1));
-                            }
+        // The point and the geometric normal four-wide, as the light
+        // sample and the ray offsets take them.
+        let (p, ng) = (Vec3A::from(hit.p), Vec3A::from(hit.ng));
+        // The hit point pushed off the surface to the side a shadow ray
+        // left into, kept for the next segment if it leaves there too.
+        let mut lifted: Option<(bool, Vec3A)> = None;
+
+        // At the guide surface, the AOV variant also gathers every
+        // point and directional light (see `aov`'s module docs): a
+        // shadow ray each, no random numbers, so the path is unchanged.
+        let at_guide = AOV && rec.at_guide() && !bsdf.is_delta();
+        if at_guide {
+            for i in 0..lights.delta_light_count() {
+                if let Some(ls) = lights.delta_light(i, p)
+                    && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
+                {
+                    let f = bsdf.eval_pdf_in(self.isa, wo_unit, wi).0;
+                    if f != Vec3::ZERO {
+                        stats.shadow += 1;
+                        let origin = hit.offset_a(p, if ls.wi.dot(ng) >= 0.0 { ng } else { -ng });
+                        if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
+                            && !self.occluded::<MASKED>(&shadow_ray, t_max)
+                        {
+                            let c = *throughput * Vec3A::from(f) * Vec3A::from(ls.value);
+                            aov.delta_lights += Vec3::from(self.clamped(c, *depth >= 1));
                         }
                     }
                 }
             }
-            // Next-event estimation.
-            if !bsdf.is_delta()
-                // Three draws whatever the light; the point's two are
-                // skipped, not made, where the light reads no point.
-                && let Some(ls) = lights.sample_drawn(p, rng.next_f32(), |read| {
-                    if read {
-                        Vec2::new(rng.next_f32(), rng.next_f32())
-                    } else {
-                        rng.skip(2);
-                        Vec2::ZERO
-                    }
-                })
-                && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
-            {
-                let (f, bsdf_pdf) = bsdf.eval_pdf_in(self.isa, wo_unit, wi);
-                if f != Vec3::ZERO {
-                    stats.shadow += 1;
-                    let out = ls.wi.dot(ng) >= 0.0;
-                    let origin = hit.offset_a(p, if out { ng } else { -ng });
-                    lifted = Some((out, origin));
-                    if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
-                        && !self.occluded::<MASKED>(&shadow_ray, t_max)
-                    {
-                        let w = if ls.delta {
-                            1.0
-                        } else {
-                            power_heuristic(ls.pdf, bsdf_pdf)
-                        };
-                        let c = self.clamped(
-                            throughput * Vec3A::from(f) * Vec3A::from(ls.value) * (w / ls.pdf),
-                            depth >= 1,
-                        );
-                        radiance += c;
+        }
+        // Next-event estimation.
+        if !bsdf.is_delta()
+            // Three draws whatever the light; the point's two are
+            // skipped, not made, where the light reads no point.
+            && let Some(ls) = lights.sample_drawn(p, rng.next_f32(), |read| {
+                if read {
+                    Vec2::new(rng.next_f32(), rng.next_f32())
+                } else {
+                    rng.skip(2);
+                    Vec2::ZERO
+                }
+            })
+            && let Some(wi) = LocalDir::new(frame.to_local(ls.wi.into()))
+        {
+            let (f, bsdf_pdf) = bsdf.eval_pdf_in(self.isa, wo_unit, wi);
+            if f != Vec3::ZERO {
+                stats.shadow += 1;
+                let out = ls.wi.dot(ng) >= 0.0;
+                let origin = hit.offset_a(p, if out { ng } else { -ng });
+                lifted = Some((out, origin));
+                if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin) {
+                    if DEFER {
+                        deferred = Some(ShadowTest {
+                            ray: shadow_ray,
+                            t_max,
+                            light: self.sampled_light(&ls, f, bsdf_pdf, *throughput, *depth),
+                        });
+                    } else if !self.occluded::<MASKED>(&shadow_ray, t_max) {
+                        let c = self.sampled_light(&ls, f, bsdf_pdf, *throughput, *depth);
+                        *radiance += c;
                         if at_guide && ls.delta {
                             aov.delta_lights_sampled += Vec3::from(c);
                         }
                     }
                 }
             }
-
-            // BSDF sampling: the next segment.
-            let u_lobe = rng.next_f32();
-            let Some(bs) = bsdf.sample_local_in(self.isa, wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32()))
-            else {
-                break;
-            };
-            throughput *= Vec3A::from(bs.weight);
-            if AOV && rec.pending() {
-                rec.bounce(bs.weight, bs.pdf, bs.delta, radiance.into());
-            }
-            if throughput.max_element() <= 0.0 {
-                break;
-            }
-            let wi = frame.to_world(bs.wi);
-            if bs.wi.z * wo.z < 0.0 {
-                // Refraction scales radiance by 1 / eta^2 (eta = ior on
-                // entering); roulette undoes that scale, as Mitsuba does,
-                // so paths inside glass are not cut for it.
-                let eta = if wo.z > 0.0 { material.ior } else { material.ior.recip() };
-                if eta.is_finite() && eta > 0.0 {
-                    eta_scale *= eta * eta;
-                }
-                stats.refraction += 1;
-            } else {
-                stats.reflection += 1;
-            }
-            let out = Vec3A::from(wi).dot(ng) >= 0.0;
-            let origin = match lifted {
-                Some((side, origin)) if side == out => origin,
-                _ => hit.offset_a(p, if out { ng } else { -ng }),
-            };
-            ray = Ray::new(origin.into(), wi);
-            prev_p = hit.p;
-            prev_pdf = bs.pdf;
-            prev_delta = bs.delta;
-            depth += 1;
-            if bs.delta && free < self.free_delta_bounces {
-                free += 1;
-            }
-
-            // Russian roulette, once `depth` segments follow the camera ray
-            // (Mitsuba: from the sixth surface on with `rr_depth = 5`).
-            if depth >= self.rr_depth {
-                let survive = (throughput.max_element() * eta_scale).min(RR_MAX_SURVIVAL);
-                if rng.next_f32() >= survive {
-                    break;
-                }
-                throughput /= survive;
-            }
         }
-        radiance.into()
+
+        // BSDF sampling: the next segment.
+        let u_lobe = rng.next_f32();
+        let Some(bs) = bsdf.sample_local_in(self.isa, wo_unit, u_lobe, Vec2::new(rng.next_f32(), rng.next_f32()))
+        else {
+            return (deferred, false);
+        };
+        *throughput *= Vec3A::from(bs.weight);
+        if AOV && rec.pending() {
+            rec.bounce(bs.weight, bs.pdf, bs.delta, (*radiance).into());
+        }
+        if throughput.max_element() <= 0.0 {
+            return (deferred, false);
+        }
+        let wi = frame.to_world(bs.wi);
+        if bs.wi.z * wo.z < 0.0 {
+            // Refraction scales radiance by 1 / eta^2 (eta = ior on
+            // entering); roulette undoes that scale, as Mitsuba does,
+            // so paths inside glass are not cut for it.
+            let eta = if wo.z > 0.0 { material.ior } else { material.ior.recip() };
+            if eta.is_finite() && eta > 0.0 {
+                *eta_scale *= eta * eta;
+            }
+            stats.refraction += 1;
+        } else {
+            stats.reflection += 1;
+        }
+        let out = Vec3A::from(wi).dot(ng) >= 0.0;
+        let origin = match lifted {
+            Some((side, origin)) if side == out => origin,
+            _ => hit.offset_a(p, if out { ng } else { -ng }),
+        };
+        *ray = Ray::new(origin.into(), wi);
+        *prev_p = hit.p;
+        *prev_pdf = bs.pdf;
+        *prev_delta = bs.delta;
+        *depth += 1;
+        if bs.delta && *free < self.free_delta_bounces {
+            *free += 1;
+        }
+
+        // Russian roulette, once `depth` segments follow the camera ray
+        // (Mitsuba: from the sixth surface on with `rr_depth = 5`).
+        if *depth >= self.rr_depth {
+            let survive = (throughput.max_element() * *eta_scale).min(RR_MAX_SURVIVAL);
+            if rng.next_f32() >= survive {
+                return (deferred, false);
+            }
+            *throughput /= survive;
+        }
+        (deferred, true)
+    }
+
+    /// The light that light sample `ls` adds where nothing blocks it: the
+    /// BSDF's value `f` (density `bsdf_pdf`) times the light over its
+    /// density, weighted against BSDF sampling (1 for a delta light), at a
+    /// vertex `depth` segments from the camera.
+    #[inline(always)]
+    fn sampled_light(&self, ls: &LightSample, f: Vec3, bsdf_pdf: f32, throughput: Vec3A, depth: u32) -> Vec3A {
+        let w = if ls.delta {
+            1.0
+        } else {
+            power_heuristic(ls.pdf, bsdf_pdf)
+        };
+        self.clamped(
+            throughput * Vec3A::from(f) * Vec3A::from(ls.value) * (w / ls.pdf),
+            depth >= 1,
+        )
     }
 
     /// `contribution` scaled down so that no channel exceeds the indirect

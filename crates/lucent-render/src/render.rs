@@ -570,11 +570,11 @@ impl Kernel for Row<'_, '_> {
                     cols[l] = col;
                 }
                 let active = (((1u32 << n) - 1) & 0xffff) as u16;
-                let hits = flat.intersect_packet(&rays, &[f32::INFINITY; PACKET], active);
+                let mut radiance = [Vec3::ZERO; PACKET];
+                path.trace_batch(flat, &rays, active, &mut rngs, &mut stats, &mut radiance);
                 for l in 0..n {
-                    let v = path.trace_primary_from(rays[l], hits[l], &mut rngs[l], &mut stats);
                     if let Some(px) = self.pixels.get_mut(cols[l]) {
-                        isa.add_sample(px, v);
+                        isa.add_sample(px, radiance[l]);
                     }
                 }
                 at += n;
