@@ -1,6 +1,6 @@
 //! A BVH over one triangle mesh (the bottom level).
 
-use crate::packet::{AnyPacket, ClosestPacket, PACKET, PacketQuery, Portable16, for_lanes};
+use crate::packet::{AnyPacket, ClosestPacket, MIN_PACKET, PACKET, PacketQuery, Portable16, for_lanes};
 use crate::wide::{BoxTest, Leaves, Query, Tally, WideBvh};
 use crate::{Aabb, BuildParams, Bvh, BvhStats, TriMesh};
 use lucent_geom::{
@@ -868,7 +868,7 @@ impl MeshBvh {
         t_max: &[f32; PACKET],
         active: u16,
     ) -> [Option<MeshHit>; PACKET] {
-        if matches!(lanes, PacketLanes::Alone) {
+        if matches!(lanes, PacketLanes::Alone) || active.count_ones() < MIN_PACKET {
             let mut out = [None; PACKET];
             for_lanes(active, |l| out[l] = self.intersect(&rays[l], t_max[l]));
             return out;
@@ -892,7 +892,7 @@ impl MeshBvh {
         t_max: &[f32; PACKET],
         active: u16,
     ) -> u16 {
-        if matches!(lanes, PacketLanes::Alone) {
+        if matches!(lanes, PacketLanes::Alone) || active.count_ones() < MIN_PACKET {
             let mut out = 0u16;
             for_lanes(active, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
             return out;

@@ -45,8 +45,13 @@ use lucent_geom::{Ray, edge_f64, lane_triangle, plane_distance};
 pub const PACKET: usize = 16;
 
 /// Rays of a group sharing their slab signs and axis permutation below
-/// which the packet walk does not pay and each is walked alone.
-pub(crate) const MIN_PACKET: u32 = 3;
+/// which the packet walk does not pay and each is walked alone (a query
+/// asked for fewer rays walks them alone without setting up the lanes). A
+/// packet's node and triangle tests cost the same for one ray as for
+/// sixteen, and sixteen rays of a pixel walked together took about 0.43 of
+/// their single-ray time (`lucent-bench rays --packets --order samples`),
+/// so fewer than about seven cannot pay.
+pub(crate) const MIN_PACKET: u32 = 8;
 
 /// The widest spread of a group's directions that the packet walk takes:
 /// the range, over the group, of either slope of the direction against its

@@ -67,14 +67,28 @@
 
 use crate::flat::FlatBvh;
 use crate::lights::SHADOW_SHORTEN;
-use crate::path::power_heuristic;
+use crate::path::{NARROW_PDF, power_heuristic};
 use crate::{RayStats, RenderScene, RenderSettings};
+use lucent_accel::{MeshBvh, MeshHit};
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
 use lucent_shading::{Bsdf, DeltaLobe, Frame, LocalDir, Material};
 use std::f32::consts::{FRAC_1_PI, TAU};
 
+/// The lanes set in `b`, one bit each.
+#[inline(always)]
+fn lane_mask(b: &Lb) -> u16 {
+    let mut m = 0u16;
+    for (i, &on) in b.iter().enumerate() {
+        m |= u16::from(on) << i;
+    }
+    m
+}
+
 /// Paths in flight at once: one lane each (one zmm register of `f32`).
 pub(crate) const LANES: usize = 16;
+
+// The lanes' rays are traced as the tree's packets, lane for lane.
+const _: () = assert!(LANES == lucent_accel::PACKET);
 
 /// The most emitters the lane tracer picks among (its pick is a sum of
 /// comparisons over all of them, in lanes).
@@ -239,6 +253,44 @@ struct Paths {
     prev_delta: Lb,
     eta_scale: Lf,
     depth: Lu,
+    /// The paths whose every bounce so far took a narrow lobe (see
+    /// `path::NARROW_PDF`): their vertices lie near those of the other
+    /// lanes' paths of this kind (the pool's paths are a row's pixels in
+    /// order), so their rays are traced as packets.
+    narrow: Lb,
+}
+
+/// The pool's next camera rays, traced together, with their paths' random
+/// streams and their hits, for the lanes to take one by one.
+struct CameraRays {
+    ray: [Ray; LANES],
+    state: [u64; LANES],
+    inc: [u64; LANES],
+    /// The paths' indices in the pool.
+    id: Lu,
+    hit: [Option<MeshHit>; LANES],
+    /// Rays held, and of those the first not taken yet.
+    len: usize,
+    at: usize,
+}
+
+impl CameraRays {
+    /// The pool's next (up to) sixteen paths from `*next` (of `n`),
+    /// started by `start`, their camera rays traced as one packet.
+    #[inline(always)]
+    fn fill(&mut self, bvh: &MeshBvh, start: &impl Fn(usize) -> (Ray, Pcg32), next: &mut usize, n: usize) {
+        self.len = (n - *next).min(LANES);
+        self.at = 0;
+        for k in 0..self.len {
+            let (ray, rng) = start(*next);
+            (self.state[k], self.inc[k]) = rng.to_parts();
+            self.ray[k] = ray;
+            self.id[k] = *next as u32;
+            *next += 1;
+        }
+        let active = (((1u32 << self.len) - 1) & 0xffff) as u16;
+        self.hit = bvh.intersect_packet(&self.ray, &[f32::INFINITY; LANES], active);
+    }
 }
 
 /// One step's hits and vertices in lanes.
@@ -501,6 +553,7 @@ impl<'a> LaneTracer<'a> {
             prev_delta: [true; LANES],
             eta_scale: Z,
             depth: [0; LANES],
+            narrow: [false; LANES],
         };
         let mut h = Hits {
             tri: [NONE; LANES],
@@ -522,52 +575,85 @@ impl<'a> LaneTracer<'a> {
         };
         let n = out.len().min(NONE as usize);
         let mut next = 0usize;
+        let mut camera = CameraRays {
+            ray: [Ray::new(Vec3::ZERO, Vec3::Z); LANES],
+            state: [0; LANES],
+            inc: [0; LANES],
+            id: [NONE; LANES],
+            hit: [None; LANES],
+            len: 0,
+            at: 0,
+        };
         loop {
-            // 1. Refill, then trace. A path whose ray leaves the scene ends
-            // here with the environment's light, and the lane takes the
-            // pool's next path at once.
+            // 1. Trace, then refill. The rays of the lanes' paths: the
+            // narrow ones' as a packet, the others one at a time. A path
+            // whose ray leaves the scene ends here with the environment's
+            // light. An empty lane takes the pool's next path, whose camera
+            // ray was traced in a packet of sixteen consecutive ones (a
+            // pixel's samples, or neighbouring pixels'); one that left the
+            // scene at once ends there and the lane takes the next.
             let mut live = 0u64;
+            h.tri = [NONE; LANES];
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+            let mut held = 0u16;
             for i in 0..LANES {
-                h.tri[i] = NONE;
-                loop {
-                    if paths.id[i] == NONE {
-                        if next >= n {
-                            break;
-                        }
-                        let (ray, rng) = start(next);
-                        let (state, inc) = rng.to_parts();
-                        paths.id[i] = next as u32;
-                        paths.state[i] = state;
-                        paths.inc[i] = inc;
-                        for c in 0..3 {
-                            paths.o[c][i] = ray.origin[c];
-                            paths.d[c][i] = ray.dir[c];
-                            paths.thr[c][i] = 1.0;
-                            paths.rad[c][i] = 0.0;
-                            paths.prev_p[c][i] = ray.origin[c];
-                        }
-                        paths.prev_pdf[i] = 0.0;
-                        paths.prev_delta[i] = true;
-                        paths.eta_scale[i] = 1.0;
-                        paths.depth[i] = 0;
-                        stats.primary += 1;
-                        next += 1;
-                    }
-                    let ray = Ray::new(
+                if paths.id[i] != NONE {
+                    held |= 1 << i;
+                    rays[i] = Ray::new(
                         Vec3::new(paths.o[0][i], paths.o[1][i], paths.o[2][i]),
                         Vec3::new(paths.d[0][i], paths.d[1][i], paths.d[2][i]),
                     );
-                    if let Some(hit) = self.flat.mesh_bvh().intersect(&ray, f32::INFINITY) {
-                        h.tri[i] = hit.prim;
-                        if let Some(t) = self.tris.get(hit.prim as usize) {
-                            crate::isa::prefetch_record(t);
-                        }
-                        h.u[i] = hit.u;
-                        h.v[i] = hit.v;
-                        break;
-                    }
-                    self.escape(&mut paths, i, ray.dir, out);
                 }
+            }
+            let bvh = self.flat.mesh_bvh();
+            let narrow = held & lane_mask(&paths.narrow);
+            let mut hits = bvh.intersect_packet(&rays, &[f32::INFINITY; LANES], narrow);
+            for i in 0..LANES {
+                if held & (1 << i) == 0 {
+                    continue;
+                }
+                if narrow & (1 << i) == 0 {
+                    hits[i] = bvh.intersect(&rays[i], f32::INFINITY);
+                }
+                match hits[i] {
+                    Some(hit) => self.take_hit(&mut h, i, hit),
+                    None => self.escape(&mut paths, i, rays[i].dir, out),
+                }
+            }
+            for i in 0..LANES {
+                while paths.id[i] == NONE {
+                    if camera.at == camera.len {
+                        if next >= n {
+                            break;
+                        }
+                        camera.fill(bvh, &start, &mut next, n);
+                    }
+                    let at = camera.at % LANES;
+                    camera.at += 1;
+                    let ray = camera.ray[at];
+                    paths.id[i] = camera.id[at];
+                    paths.state[i] = camera.state[at];
+                    paths.inc[i] = camera.inc[at];
+                    for c in 0..3 {
+                        paths.o[c][i] = ray.origin[c];
+                        paths.d[c][i] = ray.dir[c];
+                        paths.thr[c][i] = 1.0;
+                        paths.rad[c][i] = 0.0;
+                        paths.prev_p[c][i] = ray.origin[c];
+                    }
+                    paths.prev_pdf[i] = 0.0;
+                    paths.prev_delta[i] = true;
+                    paths.eta_scale[i] = 1.0;
+                    paths.depth[i] = 0;
+                    paths.narrow[i] = true;
+                    stats.primary += 1;
+                    match camera.hit[at] {
+                        Some(hit) => self.take_hit(&mut h, i, hit),
+                        None => self.escape(&mut paths, i, ray.dir, out),
+                    }
+                }
+            }
+            for i in 0..LANES {
                 live += u64::from(paths.id[i] != NONE);
             }
             if live == 0 {
@@ -611,8 +697,10 @@ impl<'a> LaneTracer<'a> {
                     }
                 }
             }
-            // Paths that end hand their radiance over.
+            // Paths that end hand their radiance over; those that go on
+            // stay narrow while their bounces are.
             for i in 0..LANES {
+                paths.narrow[i] &= paths.prev_delta[i] || paths.prev_pdf[i] >= NARROW_PDF;
                 if paths.id[i] != NONE && !go_on[i] {
                     if let Some(slot) = out.get_mut(paths.id[i] as usize) {
                         *slot = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
@@ -621,6 +709,18 @@ impl<'a> LaneTracer<'a> {
                 }
             }
         }
+    }
+
+    /// Lane `i`'s ray hit `hit`: its triangle and barycentrics into `h`,
+    /// and the triangle's record asked of the caches, which step 2 reads.
+    #[inline(always)]
+    fn take_hit(&self, h: &mut Hits, i: usize, hit: MeshHit) {
+        h.tri[i] = hit.prim;
+        if let Some(t) = self.tris.get(hit.prim as usize) {
+            crate::isa::prefetch_record(t);
+        }
+        h.u[i] = hit.u;
+        h.v[i] = hit.v;
     }
 
     /// Lane `i`'s path left the scene along `dir`: it adds the
@@ -853,16 +953,27 @@ impl<'a> LaneTracer<'a> {
             st,
             shadow,
         } = ls;
-        // 4. The shadow rays, one at a time.
+        // 4. The shadow rays: the narrow paths' as one packet, the others
+        // one at a time.
         let mut visible = [false; LANES];
+        let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+        for i in 0..LANES {
+            rays[i] = Ray::new(
+                Vec3::new(so[0][i], so[1][i], so[2][i]),
+                Vec3::new(sd[0][i], sd[1][i], sd[2][i]),
+            );
+        }
+        let tests = lane_mask(&shadow);
+        let together = tests & lane_mask(&paths.narrow);
+        let blocked = self.flat.occluded_packet(&rays, &st, together);
         for i in 0..LANES {
             if shadow[i] {
                 stats.shadow += 1;
-                let ray = Ray::new(
-                    Vec3::new(so[0][i], so[1][i], so[2][i]),
-                    Vec3::new(sd[0][i], sd[1][i], sd[2][i]),
-                );
-                visible[i] = !self.flat.occluded(&ray, st[i]);
+                visible[i] = if together & (1 << i) != 0 {
+                    blocked & (1 << i) == 0
+                } else {
+                    !self.flat.occluded(&rays[i], st[i])
+                };
             }
         }
         // 5. The light's contribution, the cosine-weighted next direction,

@@ -77,7 +77,7 @@ const RR_MAX_SURVIVAL: f32 = 0.95;
 /// those of the batch's other paths that took it (a near-mirror GGX lobe
 /// of roughness 0.1 samples densities of hundreds; a Lambertian lobe at
 /// most 1/pi). Delta lobes are narrow too.
-const NARROW_PDF: f32 = 10.0;
+pub(crate) const NARROW_PDF: f32 = 10.0;
 
 /// A path between its vertices: the segment it is on, what it carries,
 /// and what weighing emission found at the next vertex needs.
