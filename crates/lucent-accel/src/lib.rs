@@ -14,7 +14,10 @@
 //!   checks at once. The triangle test is watertight (Woop, Benthin and Wald
 //!   2013) unless Moller-Trumbore is picked ([`lucent_geom::TriangleTest`]);
 //!   the closest hit's distance is recomputed in f64. Closest-hit, any-hit
-//!   and all-hits queries, plus a brute-force reference.
+//!   and all-hits queries, plus a brute-force reference; and packets of
+//!   [`PACKET`] rays that point alike walked together
+//!   ([`MeshBvh::intersect_packet`], [`MeshBvh::occluded_packet`]), which
+//!   find the single-ray hits bit for bit.
 //! - [`SceneBvh`]: two levels, one BVH over instances (affine transforms of
 //!   shared [`MeshBvh`]s, each mesh stored once), collapsed to 8 wide and
 //!   walked like a mesh's tree.
@@ -23,9 +26,10 @@
 //! module, `kernel` (x86-64 only): the eight-box test and the
 //! eight-triangle watertight test in AVX2 intrinsics, chosen at run time
 //! where the processor has AVX2, FMA and BMI (a whole query is then compiled for
-//! those features), switched by [`MeshBvh::with_vector_kernel`] and checked
-//! bit for bit against the portable code. It holds this crate's only
-//! `unsafe` code.
+//! those features), and the packet walk's sixteen lanes in AVX-512 where
+//! the processor has it, switched by [`MeshBvh::with_vector_kernel`] and
+//! checked bit for bit against the portable code. It holds this crate's
+//! only `unsafe` code.
 //!
 //! Invariants: no IO, no panics on data (empty, degenerate, NaN and infinite
 //! input is tolerated and simply never hit), no allocation per ray (traversal

@@ -8,7 +8,7 @@
 //! about as much as the triangle trees themselves (a profile of the Cornell
 //! box put 29% of the path tracer's time in it). When the instances do not
 //! multiply the triangle count much, the extract step also builds this
-//! single 4-wide tree over the triangles moved to render space, and the path
+//! single 8-wide tree over the triangles moved to render space, and the path
 //! tracer queries it; hits are reported as the two-level tree reports them
 //! (instance, triangle of its mesh, barycentrics of the same corners), so
 //! shading code cannot tell the difference.
