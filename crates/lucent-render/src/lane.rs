@@ -1568,7 +1568,7 @@ fn fresnel_dielectric(cos_theta_i: f32, eta: f32) -> f32 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::isa::LaneIsa;
     use crate::render::{trace_rows_lanes, with_threads};
@@ -1580,7 +1580,7 @@ mod tests {
     /// The glowing box (diffuse walls that all emit) with a glass ball, a
     /// mirror cube and a dark light-less ball inside: Lambertian, delta and
     /// emissive vertices, refraction and total internal reflection.
-    fn box_with_glass_and_mirror() -> Scene {
+    pub(crate) fn box_with_glass_and_mirror() -> Scene {
         let mut scene = fixtures::glowing_box(0.6, 1.0);
         let ball = scene.add_mesh("ball", shapes::icosphere(2));
         let cube = scene.add_mesh("cube", shapes::cuboid());
@@ -1622,7 +1622,7 @@ mod tests {
     /// that is Lambertian plus a GGX lobe (roughness 0.3), a ball that is
     /// Lambertian plus a smooth dielectric, and a checker-textured
     /// Lambertian panel (per-vertex texture coordinates).
-    fn sun_sky_texture_and_mixtures() -> Scene {
+    pub(crate) fn sun_sky_texture_and_mixtures() -> Scene {
         let mut scene = Scene {
             environment: lucent_scene::Environment {
                 background: Vec3::new(0.3, 0.35, 0.45),

@@ -365,3 +365,85 @@ fn clamp_indirect_caps_only_light_that_bounced() {
     assert!(capped.max_element() <= 2.0 + 2.0 * 0.05 + 0.05, "{capped}");
     assert!(capped.min_element() > 1.9, "{capped}");
 }
+
+/// `PathTracer::trace_batch` gives every path of a batch the radiance,
+/// bit for bit, and the ray counts that `trace_primary` gives it alone:
+/// scenes with a mirror and glass (delta chains stay in the batch), a sun,
+/// a sky, a texture, a GGX floor and emitters (shadow rays of every
+/// kind), full and partial batches of a pixel's samples and of
+/// neighbouring pixels'.
+#[test]
+fn a_batch_traces_each_path_as_it_is_traced_alone_bit_for_bit() {
+    use crate::render::PixelSampler;
+    let scenes = [
+        crate::lane::tests::box_with_glass_and_mirror(),
+        crate::lane::tests::sun_sky_texture_and_mixtures(),
+        fixtures::mirror_under_ceiling(),
+        fixtures::varnished_floor_under_ceiling(),
+    ];
+    let mut batches = 0;
+    for (k, scene) in scenes.iter().enumerate() {
+        let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
+        let s = RenderSettings {
+            width: 24,
+            height: 16,
+            spp: 16,
+            max_depth: 8,
+            integrator: Integrator::Path,
+            seed: 5,
+            ..RenderSettings::default()
+        };
+        let tracer = PathTracer::new(&rs, &s);
+        let Some(flat) = tracer.flat() else {
+            panic!("scene {k}: no flat tree");
+        };
+        let sampler = PixelSampler::new(&rs, &s, s.width, s.height);
+        for row in 0..s.height {
+            for start in (0..s.width * 16).step_by(16) {
+                // Sixteen samples of one pixel, or one of each of sixteen
+                // pixels; some lanes left out.
+                let pick = |l: u32| {
+                    if row % 2 == 0 {
+                        (start / 16, l)
+                    } else {
+                        ((start / 16 + l) % s.width, row)
+                    }
+                };
+                let active: u16 = if (start / 16) % 3 == 1 { 0x7bde } else { 0xffff };
+                let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
+                let mut rngs: [Pcg32; PACKET] = std::array::from_fn(|_| Pcg32::new(0, 0));
+                for l in 0..PACKET as u32 {
+                    let (col, sample) = pick(l);
+                    (rays[l as usize], rngs[l as usize]) = sampler.path_start(col, row, sample);
+                }
+                let mut alone = RayStats::default();
+                let want: Vec<Option<[u32; 3]>> = (0..PACKET)
+                    .map(|l| {
+                        (active >> l & 1 != 0).then(|| {
+                            let mut rng = rngs[l].clone();
+                            tracer
+                                .trace_primary(rays[l], &mut rng, &mut alone)
+                                .to_array()
+                                .map(f32::to_bits)
+                        })
+                    })
+                    .collect();
+                let mut together = RayStats::default();
+                let mut out = [Vec3::ZERO; PACKET];
+                tracer.trace_batch(flat, &rays, active, &mut rngs, &mut together, &mut out);
+                for l in 0..PACKET {
+                    if let Some(want) = want[l] {
+                        assert_eq!(
+                            out[l].to_array().map(f32::to_bits),
+                            want,
+                            "scene {k}, row {row}, lane {l}"
+                        );
+                    }
+                }
+                assert_eq!(together, alone, "scene {k}, row {row}: ray counts");
+                batches += 1;
+            }
+        }
+    }
+    assert!(batches > 1000);
+}
