@@ -136,7 +136,7 @@ impl PacketLanes {
     /// Runs `q` in these lanes (not [`PacketLanes::Alone`], which runs
     /// nothing: the portable lanes then).
     #[inline(always)]
-    fn run<Q: PacketQuery>(self, q: Q) -> Q::Output {
+    pub(crate) fn run<Q: PacketQuery>(self, q: Q) -> Q::Output {
         match self {
             #[cfg(target_arch = "x86_64")]
             PacketLanes::Avx512(k) => k.run(q),
@@ -369,8 +369,8 @@ impl<L: LeafTest, V: FnMut(MeshHit) -> bool> Leaves for EachLeaves<'_, L, V> {
 /// [`MeshBvh::with_triangle_test`] picks another.
 #[derive(Clone, Debug, Default)]
 pub struct MeshBvh {
-    wide: WideBvh,
-    packs: Vec<Pack>,
+    pub(crate) wide: WideBvh,
+    pub(crate) packs: Vec<Pack>,
     n_tris: usize,
     stats: BvhStats,
     bounds: Aabb,
@@ -617,7 +617,8 @@ impl MeshBvh {
     /// [`MeshBvh::closest_in`] as a query of its own, with this tree's
     /// kernels (prefetching as [`MeshBvh::intersect`] does). Out of line:
     /// the instance walk calls it for meshes with other kernels than its
-    /// own, and is not to carry a copy of it.
+    /// own, the packet walks (`crate::scene_packet`) for rays they leave
+    /// alone, and neither is to carry a copy of it.
     #[inline(never)]
     pub(crate) fn closest_alone(&self, ray: &Ray, t_max: f32) -> Option<(usize, MeshHit)> {
         if self.prefetch {
@@ -625,6 +626,20 @@ impl MeshBvh {
         } else {
             self.run(ClosestSlot::<false> { mesh: self, ray, t_max })
         }
+    }
+
+    /// [`MeshBvh::occluded`], out of line (as [`MeshBvh::closest_alone`]).
+    #[inline(never)]
+    pub(crate) fn occluded_alone(&self, ray: &Ray, t_max: f32) -> bool {
+        self.occluded(ray, t_max)
+    }
+
+    /// Whether packet walks take this tree's rays together (the watertight
+    /// test, vector kernels on): else each ray is walked alone with the
+    /// tree's own kernels.
+    #[inline(always)]
+    pub(crate) fn packs_in_packets(&self) -> bool {
+        self.vector && self.test == TriangleTest::Watertight
     }
 
     /// [`MeshBvh::occluded`] from inside a query running with `boxes` and

@@ -1,7 +1,9 @@
 //! Two-level BVH: a tree over instances, each an affine transform of a
 //! shared mesh BVH.
 
-use crate::mesh_bvh::LeafTest;
+use crate::mesh_bvh::{LeafTest, PacketLanes};
+use crate::packet::{PACKET, for_lanes};
+use crate::scene_packet::{AnyScenePacket, ClosestScenePacket};
 use crate::wide::{BoxTest, Leaves, Query, WideBvh, leaf_entry};
 use crate::{Aabb, BuildParams, Bvh, MeshBvh, MeshHit};
 use lucent_geom::{Affine3A, Ray};
@@ -64,7 +66,7 @@ impl Instance {
 
 /// `ray` moved by `object_from_world` (direction not renormalised).
 #[inline(always)]
-fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
+pub(crate) fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
     Ray::new(
         object_from_world.transform_point3(ray.origin),
         object_from_world.transform_vector3(ray.dir),
@@ -76,11 +78,11 @@ fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
 /// instance entered costs one lookup, not one in the tree's order and one
 /// among the instances.
 #[derive(Clone, Copy, Debug)]
-struct Placed {
-    object_from_world: Affine3A,
-    mesh: u32,
+pub(crate) struct Placed {
+    pub(crate) object_from_world: Affine3A,
+    pub(crate) mesh: u32,
     /// Its index among the instances.
-    instance: u32,
+    pub(crate) instance: u32,
 }
 
 /// A hit in a two-level scene.
@@ -101,15 +103,19 @@ pub struct SceneHit {
 /// A BVH over instances of shared mesh BVHs.
 #[derive(Clone, Debug, Default)]
 pub struct SceneBvh {
-    meshes: Vec<Arc<MeshBvh>>,
+    pub(crate) meshes: Vec<Arc<MeshBvh>>,
     instances: Vec<Instance>,
     tlas: Bvh,
     /// The instances in `tlas.prim_indices` order.
-    placed: Vec<Placed>,
+    pub(crate) placed: Vec<Placed>,
     /// The instance tree collapsed to 8 wide (leaves name runs of
     /// `tlas.prim_indices`), which queries walk with the mesh trees' walk
     /// and box test.
-    wide: WideBvh,
+    pub(crate) wide: WideBvh,
+    /// The AVX-512 lanes of the packet walk, where the machine has them
+    /// ([`SceneBvh::intersect_packet`]).
+    #[cfg(target_arch = "x86_64")]
+    packet: Option<crate::kernel::Avx512>,
 }
 
 impl SceneBvh {
@@ -158,6 +164,8 @@ impl SceneBvh {
             tlas,
             placed,
             wide,
+            #[cfg(target_arch = "x86_64")]
+            packet: crate::kernel::Avx512::detect(),
         }
     }
 
@@ -238,6 +246,116 @@ impl SceneBvh {
             ray,
             t_max,
         })
+    }
+
+    /// The closest hits of up to [`PACKET`] rays at once: lane `l` of the
+    /// answer is [`SceneBvh::intersect`]`(&rays[l], t_max[l])` where bit `l`
+    /// of `active` is set, bit for bit, and `None` elsewhere.
+    ///
+    /// On processors with AVX-512, rays that start near one another and
+    /// point the same way (a pixel's camera rays) are walked together
+    /// through the instance tree and, moved into each instance they reach,
+    /// through its mesh (`crate::scene_packet`), as
+    /// [`MeshBvh::intersect_packet`] walks a mesh; other rays, and all of
+    /// them elsewhere, are walked one at a time.
+    ///
+    /// ```
+    /// use lucent_accel::{BuildParams, Instance, MeshBvh, PACKET, SceneBvh};
+    /// use lucent_geom::{shapes, Affine3A, Ray, Vec3};
+    /// use std::sync::Arc;
+    /// let sphere = Arc::new(MeshBvh::build(&shapes::icosphere(3), &BuildParams::default()));
+    /// let instances = [-1.5f32, 1.5]
+    ///     .map(|x| Instance::new(Affine3A::from_translation(Vec3::new(x, 0.0, 0.0)), 0))
+    ///     .into_iter()
+    ///     .flatten()
+    ///     .collect();
+    /// let scene = SceneBvh::build(vec![sphere], instances, &BuildParams::default());
+    /// let rays: [Ray; PACKET] =
+    ///     std::array::from_fn(|l| Ray::new(Vec3::new(-2.0 + 0.25 * l as f32, 0.1, -5.0), Vec3::Z));
+    /// let hits = scene.intersect_packet(&rays, &[f32::INFINITY; PACKET], 0xffff);
+    /// for (ray, hit) in rays.iter().zip(hits) {
+    ///     assert_eq!(hit, scene.intersect(ray, f32::INFINITY));
+    /// }
+    /// ```
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<SceneHit>; PACKET] {
+        self.intersect_packet_in(self.packet_lanes(), rays, t_max, active)
+    }
+
+    /// Whether anything is hit with `0 < t < t_max[l]` by each of up to
+    /// [`PACKET`] rays: bit `l` of the answer is
+    /// [`SceneBvh::occluded`]`(&rays[l], t_max[l])` where bit `l` of
+    /// `active` is set, and clear elsewhere. Rays are walked together as
+    /// [`SceneBvh::intersect_packet`] walks them.
+    pub fn occluded_packet(&self, rays: &[Ray; PACKET], t_max: &[f32; PACKET], active: u16) -> u16 {
+        self.occluded_packet_in(self.packet_lanes(), rays, t_max, active)
+    }
+
+    /// Whether [`SceneBvh::intersect_packet`] and
+    /// [`SceneBvh::occluded_packet`] walk rays together here (AVX-512),
+    /// rather than one at a time.
+    pub fn walks_packets(&self) -> bool {
+        !matches!(self.packet_lanes(), PacketLanes::Alone)
+    }
+
+    /// The lanes packet queries run in: AVX-512 where the processor has
+    /// it, else none (every ray alone).
+    fn packet_lanes(&self) -> PacketLanes {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = self.packet {
+            return PacketLanes::Avx512(k);
+        }
+        PacketLanes::Alone
+    }
+
+    /// [`SceneBvh::intersect_packet`] in lanes `lanes`.
+    pub(crate) fn intersect_packet_in(
+        &self,
+        lanes: PacketLanes,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<SceneHit>; PACKET] {
+        if matches!(lanes, PacketLanes::Alone) {
+            let mut out = [None; PACKET];
+            for_lanes(active, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+            return out;
+        }
+        let (mut out, alone) = lanes.run(ClosestScenePacket {
+            scene: self,
+            rays,
+            t_max,
+            active,
+        });
+        for_lanes(alone, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+        out
+    }
+
+    /// [`SceneBvh::occluded_packet`] in lanes `lanes`.
+    pub(crate) fn occluded_packet_in(
+        &self,
+        lanes: PacketLanes,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> u16 {
+        if matches!(lanes, PacketLanes::Alone) {
+            let mut out = 0u16;
+            for_lanes(active, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
+            return out;
+        }
+        let (mut out, alone) = lanes.run(AnyScenePacket {
+            scene: self,
+            rays,
+            t_max,
+            active,
+        });
+        for_lanes(alone, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
+        out
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
@@ -343,8 +461,8 @@ impl<B: BoxTest, L: LeafTest> Leaves for &mut ClosestInstances<'_, B, L> {
 /// walks keep `t < bound`), a later one must be strictly nearer. So among
 /// equally close hits the lowest instance wins whatever order the instances
 /// are visited in, as the lowest slot does within a mesh
-/// (`mesh_bvh::tie_bound`), and a walk that visits them in another order
-/// (a packet walk) finds the same hit, bit for bit. Instances are compared by
+/// (`mesh_bvh::tie_bound`), and the packet walk (`crate::scene_packet`)
+/// finds the single-ray walk's hit, bit for bit. Instances are compared by
 /// their hits' distances before refinement (the refined distance of one
 /// hit can order it otherwise against another's unrefined one), and the
 /// winner alone is refined ([`SceneBvh::refine`]).
@@ -411,7 +529,7 @@ impl<B: BoxTest, L: LeafTest> Leaves for AnyInstances<'_, B, L> {
     }
 }
 
-fn scene_hit(h: MeshHit, instance: u32) -> SceneHit {
+pub(crate) fn scene_hit(h: MeshHit, instance: u32) -> SceneHit {
     SceneHit {
         t: h.t,
         u: h.u,
@@ -422,7 +540,7 @@ fn scene_hit(h: MeshHit, instance: u32) -> SceneHit {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use lucent_geom::{Quat, Vec3, shapes};
 
@@ -541,14 +659,19 @@ mod tests {
         ]);
     }
 
-    fn bits(h: Option<SceneHit>) -> Option<(u32, u32, u32, u32, u32)> {
+    pub(crate) fn bits(h: Option<SceneHit>) -> Option<(u32, u32, u32, u32, u32)> {
         h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim, h.instance))
     }
 
     /// The closest hit by the rule of the scene's walks, testing every
     /// instance in turn: each instance's closest hit before refinement,
     /// the nearest of them (the lowest instance among equals), refined.
-    fn nearest_instance(meshes: &[Arc<MeshBvh>], instances: &[Instance], ray: &Ray, t_max: f32) -> Option<SceneHit> {
+    pub(crate) fn nearest_instance(
+        meshes: &[Arc<MeshBvh>],
+        instances: &[Instance],
+        ray: &Ray,
+        t_max: f32,
+    ) -> Option<SceneHit> {
         let mut best: Option<(usize, usize, MeshHit)> = None;
         for (idx, inst) in instances.iter().enumerate() {
             let Some(mesh) = meshes.get(inst.mesh() as usize) else {
@@ -620,7 +743,7 @@ mod tests {
     /// A grid of squares in the plane z = 0, each split along one diagonal
     /// (or, `flipped`, the other), plus (`far`) a triangle far off in the
     /// plane, so that its tree's box differs from the grid's own.
-    fn grid(flipped: bool, far: bool) -> lucent_geom::TriMesh {
+    pub(crate) fn grid(flipped: bool, far: bool) -> lucent_geom::TriMesh {
         let (mut positions, mut indices) = (Vec::new(), Vec::new());
         for y in 0..8 {
             for x in 0..8 {
@@ -660,7 +783,7 @@ mod tests {
     /// as far in exact arithmetic but not in f32, so that refining the
     /// distances before comparing them would order them otherwise; and
     /// spheres overlapping all of that.
-    fn coincident_instances() -> (Vec<Arc<MeshBvh>>, Vec<Instance>) {
+    pub(crate) fn coincident_instances() -> (Vec<Arc<MeshBvh>>, Vec<Instance>) {
         let params = BuildParams::default();
         let meshes = vec![
             Arc::new(MeshBvh::build(&grid(false, false), &params)),
