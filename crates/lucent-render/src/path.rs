@@ -60,7 +60,7 @@
 //! [`PathTracer::trace_primary`] is its variant compiled without that work.
 
 use crate::aov::{AovRecorder, AovSample};
-use crate::flat::FlatBvh;
+use crate::flat::{FlatBvh, TracedTree};
 use crate::interaction::SurfaceInteraction;
 use crate::isa::Isa;
 use crate::{RayStats, RenderScene, RenderSettings};
@@ -123,9 +123,17 @@ impl<'a> PathTracer<'a> {
         }
     }
 
-    /// The scene's one-level tree, when it has one.
-    pub(crate) fn flat(&self) -> Option<&'a FlatBvh> {
-        self.flat.filter(|_| !self.scene.features.alpha_tested)
+    /// The tree this tracer finds hits in (the flat tree, else the
+    /// scene's), where no alpha test decides them: a caller may trace
+    /// camera rays through it and go on with [`PathTracer::trace_primary_from`].
+    pub(crate) fn tree(&self) -> Option<TracedTree<'a>> {
+        if self.scene.features.alpha_tested {
+            return None;
+        }
+        Some(match self.flat {
+            Some(flat) => TracedTree::Flat(flat),
+            None => TracedTree::Scene(&self.scene.bvh),
+        })
     }
 
     /// Radiance along a camera ray, one path, random numbers from `rng`.
