@@ -54,6 +54,7 @@ mod kernel;
 mod mesh_bvh;
 mod packet;
 mod scene_bvh;
+mod scene_packet;
 mod wide;
 
 pub use build::{BuildParams, BuildQuality};

@@ -136,7 +136,7 @@ impl PacketLanes {
     /// Runs `q` in these lanes (not [`PacketLanes::Alone`], which runs
     /// nothing: the portable lanes then).
     #[inline(always)]
-    fn run<Q: PacketQuery>(self, q: Q) -> Q::Output {
+    pub(crate) fn run<Q: PacketQuery>(self, q: Q) -> Q::Output {
         match self {
             #[cfg(target_arch = "x86_64")]
             PacketLanes::Avx512(k) => k.run(q),
@@ -369,8 +369,8 @@ impl<L: LeafTest, V: FnMut(MeshHit) -> bool> Leaves for EachLeaves<'_, L, V> {
 /// [`MeshBvh::with_triangle_test`] picks another.
 #[derive(Clone, Debug, Default)]
 pub struct MeshBvh {
-    wide: WideBvh,
-    packs: Vec<Pack>,
+    pub(crate) wide: WideBvh,
+    pub(crate) packs: Vec<Pack>,
     n_tris: usize,
     stats: BvhStats,
     bounds: Aabb,
@@ -415,6 +415,30 @@ impl<T: Tally, const PREFETCH: bool> Query for Closest<'_, T, PREFETCH> {
             self.t_max,
             Prefetch::children(PREFETCH),
             self.tally,
+        )
+    }
+}
+
+/// The closest-hit query before refinement ([`MeshBvh::closest_alone`]),
+/// run through [`MeshBvh::run`], prefetching entered children where
+/// `PREFETCH` (as [`Closest`]).
+struct ClosestSlot<'a, const PREFETCH: bool> {
+    mesh: &'a MeshBvh,
+    ray: &'a Ray,
+    t_max: f32,
+}
+
+impl<const PREFETCH: bool> Query for ClosestSlot<'_, PREFETCH> {
+    type Output = Option<(usize, MeshHit)>;
+    #[inline(always)]
+    fn run<B: BoxTest, L: LeafTest>(self, boxes: B, leaves: L) -> Option<(usize, MeshHit)> {
+        self.mesh.closest_with(
+            boxes,
+            leaves,
+            self.ray,
+            self.t_max,
+            Prefetch::children(PREFETCH),
+            &mut (),
         )
     }
 }
@@ -564,27 +588,58 @@ impl MeshBvh {
         B::SIMD == boxes && L::SIMD == leaves
     }
 
-    /// [`MeshBvh::intersect`] from inside a query running with `boxes` and
-    /// `leaves`: inlined there when this tree runs with them too, else the
-    /// call.
+    /// The closest hit with `0 < t < t_max` as (slot = `LANES * pack +
+    /// lane`, hit), before its distance is refined
+    /// ([`MeshBvh::refine`]), from inside a query running with `boxes` and
+    /// `leaves` (the instance walk, which compares instances by these
+    /// distances and refines its one hit at the end): inlined there when
+    /// this tree runs with them too, else [`MeshBvh::closest_alone`].
     #[inline(always)]
-    pub(crate) fn intersect_in<B: BoxTest, L: LeafTest>(
+    pub(crate) fn closest_in<B: BoxTest, L: LeafTest>(
         &self,
         boxes: B,
         leaves: L,
         ray: &Ray,
         t_max: f32,
-    ) -> Option<MeshHit> {
+    ) -> Option<(usize, MeshHit)> {
         if self.runs_with::<B, L>() {
             let prefetch = if INSTANCED_PREFETCH {
                 Prefetch::ChildrenAndHit
             } else {
                 Prefetch::Nothing
             };
-            self.intersect_with(boxes, leaves, ray, t_max, prefetch, &mut ())
+            self.closest_with(boxes, leaves, ray, t_max, prefetch, &mut ())
         } else {
-            self.intersect(ray, t_max)
+            self.closest_alone(ray, t_max)
         }
+    }
+
+    /// [`MeshBvh::closest_in`] as a query of its own, with this tree's
+    /// kernels (prefetching as [`MeshBvh::intersect`] does). Out of line:
+    /// the instance walk calls it for meshes with other kernels than its
+    /// own, the packet walks (`crate::scene_packet`) for rays they leave
+    /// alone, and neither is to carry a copy of it.
+    #[inline(never)]
+    pub(crate) fn closest_alone(&self, ray: &Ray, t_max: f32) -> Option<(usize, MeshHit)> {
+        if self.prefetch {
+            self.run(ClosestSlot::<true> { mesh: self, ray, t_max })
+        } else {
+            self.run(ClosestSlot::<false> { mesh: self, ray, t_max })
+        }
+    }
+
+    /// [`MeshBvh::occluded`], out of line (as [`MeshBvh::closest_alone`]).
+    #[inline(never)]
+    pub(crate) fn occluded_alone(&self, ray: &Ray, t_max: f32) -> bool {
+        self.occluded(ray, t_max)
+    }
+
+    /// Whether packet walks take this tree's rays together (the watertight
+    /// test, vector kernels on): else each ray is walked alone with the
+    /// tree's own kernels.
+    #[inline(always)]
+    pub(crate) fn packs_in_packets(&self) -> bool {
+        self.vector && self.test == TriangleTest::Watertight
     }
 
     /// [`MeshBvh::occluded`] from inside a query running with `boxes` and
@@ -712,10 +767,8 @@ impl MeshBvh {
     }
 
     /// The closest-hit query with box test `B` and pack tests `L`,
-    /// prefetching what `prefetch` says (where `B` can): entered children,
-    /// and with [`Prefetch::ChildrenAndHit`] (instance walks, whose meshes
-    /// are the renderer's) the hit triangle's entry of the index array at
-    /// `hit_indices`.
+    /// prefetching what `prefetch` says ([`MeshBvh::closest_with`]), its
+    /// hit's distance refined.
     #[inline(always)]
     fn intersect_with<B: BoxTest, L: LeafTest, T: Tally>(
         &self,
@@ -726,6 +779,25 @@ impl MeshBvh {
         prefetch: Prefetch,
         tally: &mut T,
     ) -> Option<MeshHit> {
+        self.closest_with(boxes, leaves, ray, t_max, prefetch, tally)
+            .map(|(slot, hit)| self.refine(leaves, ray, slot, hit, t_max))
+    }
+
+    /// The closest hit with box test `B` and pack tests `L`, as (slot,
+    /// hit) before refinement, prefetching what `prefetch` says (where `B`
+    /// can): entered children, and with [`Prefetch::ChildrenAndHit`]
+    /// (instance walks, whose meshes are the renderer's) the hit
+    /// triangle's entry of the index array at `hit_indices`.
+    #[inline(always)]
+    fn closest_with<B: BoxTest, L: LeafTest, T: Tally>(
+        &self,
+        boxes: B,
+        leaves: L,
+        ray: &Ray,
+        t_max: f32,
+        prefetch: Prefetch,
+        tally: &mut T,
+    ) -> Option<(usize, MeshHit)> {
         let mut visit = ClosestLeaves {
             packs: &self.packs,
             prefetch: prefetch != Prefetch::Nothing,
@@ -744,14 +816,14 @@ impl MeshBvh {
             let at = std::ptr::without_provenance::<u8>(self.hit_indices);
             boxes.prefetch(at.wrapping_add(h.prim as usize * size_of::<[u32; 3]>()), 1);
         }
-        visit.best.map(|(slot, hit)| self.refine(leaves, ray, slot, hit, t_max))
+        visit.best
     }
 
     /// The hit with its distance recomputed in f64 when that lies in
     /// `(0, t_max)` too (it does but where the f32 value sits at a bound,
     /// and then the f32 value is kept). `slot` is `LANES * pack + lane`.
     #[inline(always)]
-    fn refine<L: LeafTest>(&self, leaves: L, ray: &Ray, slot: usize, hit: MeshHit, t_max: f32) -> MeshHit {
+    pub(crate) fn refine<L: LeafTest>(&self, leaves: L, ray: &Ray, slot: usize, hit: MeshHit, t_max: f32) -> MeshHit {
         let t = self
             .packs
             .get(slot / LANES)

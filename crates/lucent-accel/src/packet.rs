@@ -28,6 +28,10 @@
 //! found meanwhile. Any hit: children in lane order, the largest box first
 //! (as the single-ray walk), and a ray leaves the packet at its first hit.
 //!
+//! The walks are generic over what they do at a leaf ([`ClosestLeaves`],
+//! [`AnyLeaves`]): a mesh's triangle packs here, an instance's mesh in
+//! `crate::scene_packet`, whose instance tree they walk too.
+//!
 //! The walk is written once, generic over [`Lanes`] (sixteen `f32` and
 //! `u32` lanes and masks of sixteen bits): the portable implementation
 //! here, plain arrays, is the reference; `crate::kernel`'s AVX-512 one is
@@ -39,7 +43,7 @@ use crate::mesh_bvh::{LANES as PACK_LANES, MeshHit, Pack};
 use crate::wide::{
     FAR_SCALE, LEAF_BIT, MEDIUM_DEPTH, NEAR_SCALE, SMALL_DEPTH, W, WideBvh, WideNode, leaf_range, stack_size,
 };
-use lucent_geom::{Ray, edge_f64, lane_triangle, plane_distance};
+use lucent_geom::{Affine3A, Ray, edge_f64, lane_triangle, plane_distance};
 
 /// Rays in a packet.
 pub const PACKET: usize = 16;
@@ -255,7 +259,7 @@ pub(crate) trait PacketQuery {
 /// ([`crate::wide::SlabRay`]) and what picks the watertight test's axes
 /// ([`PreparedRay::new`]).
 #[derive(Clone, Copy)]
-struct Rays<L: Lanes> {
+pub(crate) struct Rays<L: Lanes> {
     origin: [L::F; 3],
     dir: [L::F; 3],
     inv_near: [L::F; 3],
@@ -270,12 +274,12 @@ struct Rays<L: Lanes> {
     down: u16,
     /// The rays of `active` that can be traced at all (finite origin and
     /// direction).
-    traceable: u16,
+    pub(crate) traceable: u16,
 }
 
 impl<L: Lanes> Rays<L> {
     #[inline(always)]
-    fn new(lanes: L, rays: &[Ray; PACKET], active: u16) -> Self {
+    pub(crate) fn new(lanes: L, rays: &[Ray; PACKET], active: u16) -> Self {
         let mut rows = [[0.0f32; PACKET]; 6];
         for (l, ray) in rays.iter().enumerate() {
             let (o, d) = (ray.origin, ray.dir);
@@ -288,6 +292,35 @@ impl<L: Lanes> Rays<L> {
         }
         let origin = [lanes.load(&rows[0]), lanes.load(&rows[1]), lanes.load(&rows[2])];
         let dir = [lanes.load(&rows[3]), lanes.load(&rows[4]), lanes.load(&rows[5])];
+        Self::from_rows(lanes, origin, dir, active)
+    }
+
+    /// The rays of `active` moved by `m` (an instance's `object_from_world`)
+    /// as the single-ray instance walk moves each one
+    /// (`Affine3A::transform_point3` and `transform_vector3`, which give,
+    /// per component, `((x * o.x + y * o.y) + z * o.z) + w` and the same
+    /// without `w`), so every lane holds that walk's object ray, bit for
+    /// bit.
+    #[inline(always)]
+    pub(crate) fn moved(&self, lanes: L, m: &Affine3A, active: u16) -> Self {
+        let [x, y, z] = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
+        let w = m.translation;
+        let (o, d) = (self.origin, self.dir);
+        let mut origin = o;
+        let mut dir = d;
+        for c in 0..3 {
+            // (No closure for the shared part: see `Packet::new`.)
+            let column = [x[c], y[c], z[c]];
+            origin[c] = lanes.add(combine(lanes, column, o), lanes.splat(w[c]));
+            dir[c] = combine(lanes, column, d);
+        }
+        Self::from_rows(lanes, origin, dir, active)
+    }
+
+    /// The rays with these origins and directions, of which `active` are
+    /// to be traced.
+    #[inline(always)]
+    fn from_rows(lanes: L, origin: [L::F; 3], dir: [L::F; 3], active: u16) -> Self {
         let zero = lanes.splat(0.0);
         // `wide::traceable`: `x - x` is 0 for finite `x`, NaN otherwise.
         let mut finite = zero;
@@ -322,7 +355,7 @@ impl<L: Lanes> Rays<L> {
     /// The traceable rays of `todo` that share the first one's slab signs
     /// and axis permutation: a group the packet walk takes.
     #[inline(always)]
-    fn group(&self, todo: u16) -> u16 {
+    pub(crate) fn group(&self, todo: u16) -> u16 {
         let todo = todo & self.traceable;
         if todo == 0 {
             return 0;
@@ -343,9 +376,17 @@ impl<L: Lanes> Rays<L> {
     }
 }
 
+/// `(m[0] * v[0] + m[1] * v[1]) + m[2] * v[2]` in every lane: one row of
+/// a matrix times a vector, in glam's order.
+#[inline(always)]
+fn combine<L: Lanes>(lanes: L, m: [f32; 3], v: [L::F; 3]) -> L::F {
+    let xy = lanes.add(lanes.mul(lanes.splat(m[0]), v[0]), lanes.mul(lanes.splat(m[1]), v[1]));
+    lanes.add(xy, lanes.mul(lanes.splat(m[2]), v[2]))
+}
+
 /// A group of rays of one key in lanes: what the walk reads.
 #[derive(Clone, Copy)]
-struct Packet<L: Lanes> {
+pub(crate) struct Packet<L: Lanes> {
     origin: [L::F; 3],
     inv_near: [L::F; 3],
     inv_far: [L::F; 3],
@@ -397,6 +438,19 @@ impl<L: Lanes> Packet<L> {
             ],
             k: [kx, ky, kz],
         }
+    }
+
+    /// The rays of `group` (one key) as a packet, where the packet walk
+    /// takes them: at least [`MIN_PACKET`] of them, [`Packet::coherent`].
+    /// `None`: each is to be walked alone.
+    #[inline(always)]
+    pub(crate) fn walked(lanes: L, rays: &Rays<L>, group: u16) -> Option<Self> {
+        // (No closures around the lanes' code: see `Packet::new`.)
+        if group.count_ones() < MIN_PACKET {
+            return None;
+        }
+        let packet = Packet::new(lanes, rays, group);
+        packet.coherent(lanes, group).then_some(packet)
     }
 
     /// Whether the rays of `group` point closely enough alike for the
@@ -541,19 +595,187 @@ fn edges_f64(lanes: u16, rows: &[[f32; PACKET]; 6], uvw: &mut [[f32; PACKET]; 3]
     }
 }
 
-/// The best hit of every ray so far.
+/// The best hit of every ray in a mesh so far (its distance is the walk's
+/// bound, kept beside it: see [`closest`]).
 #[derive(Clone, Copy)]
-struct Best<L: Lanes> {
-    /// Its distance (`t_max` before any).
-    t: L::F,
+pub(crate) struct MeshBest<L: Lanes> {
     /// Its slot (`PACK_LANES * pack + lane`), [`NO_SLOT`] before any.
-    slot: L::U,
+    pub(crate) slot: L::U,
     /// Its scaled barycentrics and reciprocal determinant.
-    v: L::F,
-    w: L::F,
-    inv_det: L::F,
+    pub(crate) v: L::F,
+    pub(crate) w: L::F,
+    pub(crate) inv_det: L::F,
     /// The rays that have one.
-    found: u16,
+    pub(crate) found: u16,
+}
+
+/// What a closest-hit packet walk does at a leaf: tests the leaf's run of
+/// `count` entries from `first` against the rays of `rays`, lowering their
+/// bounds `t` where it finds nearer hits. (A trait on structs, not a
+/// closure: see `Packet::new`.)
+pub(crate) trait ClosestLeaves<L: Lanes> {
+    /// Tests the run against the rays of `rays`.
+    fn visit(&mut self, lanes: L, first: usize, count: usize, rays: u16, t: &mut L::F);
+}
+
+/// What an any-hit packet walk does at a leaf: the rays of `rays` that hit
+/// something of the leaf's run with `0 < t < t_max`.
+pub(crate) trait AnyLeaves<L: Lanes> {
+    /// Tests the run against the rays of `rays`.
+    fn visit(&mut self, lanes: L, first: usize, count: usize, rays: u16, t_max: L::F) -> u16;
+}
+
+/// The leaves of a mesh's closest-hit packet walk: triangle packs.
+struct PackLeaves<'a, L: Lanes> {
+    packs: &'a [Pack],
+    p: &'a Packet<L>,
+    best: MeshBest<L>,
+}
+
+impl<L: Lanes> ClosestLeaves<L> for PackLeaves<'_, L> {
+    #[inline(always)]
+    fn visit(&mut self, lanes: L, first: usize, count: usize, m: u16, t: &mut L::F) {
+        let best = &mut self.best;
+        for idx in first..first + count {
+            let Some(pack) = self.packs.get(idx) else { break };
+            for lane in 0..PACK_LANES {
+                if pack.prim[lane] == u32::MAX {
+                    continue;
+                }
+                let Some(edges) = self.p.edges(lanes, pack, lane, m) else {
+                    continue;
+                };
+                // `mesh_bvh::tie_bound`, ray by ray: a slot before a
+                // ray's best may hit at its very distance.
+                let slot = (idx * PACK_LANES + lane) as u32;
+                let earlier = best.found & lanes.gt_u(best.slot, lanes.splat_u(slot));
+                let bound = lanes.select(earlier, lanes.next_up(*t), *t);
+                let (t_hit, inv_det, ok) = self.p.distance(lanes, &edges, bound);
+                if ok != 0 {
+                    *t = lanes.select(ok, t_hit, *t);
+                    best.slot = lanes.select_u(ok, lanes.splat_u(slot), best.slot);
+                    best.v = lanes.select(ok, edges.v, best.v);
+                    best.w = lanes.select(ok, edges.w, best.w);
+                    best.inv_det = lanes.select(ok, inv_det, best.inv_det);
+                    best.found |= ok;
+                }
+            }
+        }
+    }
+}
+
+/// The leaves of a mesh's any-hit packet walk.
+struct PackAny<'a, L: Lanes> {
+    packs: &'a [Pack],
+    p: &'a Packet<L>,
+}
+
+impl<L: Lanes> AnyLeaves<L> for PackAny<'_, L> {
+    #[inline(always)]
+    fn visit(&mut self, lanes: L, first: usize, count: usize, m: u16, t_max: L::F) -> u16 {
+        let mut hit = 0u16;
+        let mut open = m;
+        for pack in self.packs.get(first..first + count).unwrap_or_default() {
+            for lane in 0..PACK_LANES {
+                if pack.prim[lane] == u32::MAX {
+                    continue;
+                }
+                let Some(edges) = self.p.edges(lanes, pack, lane, open) else {
+                    continue;
+                };
+                let ok = self.p.distance(lanes, &edges, t_max).2;
+                hit |= ok;
+                open &= !ok;
+                if open == 0 {
+                    return hit;
+                }
+            }
+        }
+        hit
+    }
+}
+
+/// The closest hits of the rays of `group` (one key) in a mesh's tree
+/// (`wide`, `packs`), each below its bound in `t`: the bounds lowered to
+/// the hits found, and the hits. A ray's hit is its nearest with
+/// `0 < t < bound` (the lowest slot among equals), as the single-ray walk
+/// started from that bound finds it.
+#[inline(always)]
+pub(crate) fn closest_in_mesh<L: Lanes>(
+    lanes: L,
+    wide: &WideBvh,
+    packs: &[Pack],
+    p: &Packet<L>,
+    t: L::F,
+    group: u16,
+) -> (L::F, MeshBest<L>) {
+    let mut leaves = PackLeaves {
+        packs,
+        p,
+        best: MeshBest {
+            slot: lanes.splat_u(NO_SLOT),
+            v: lanes.splat(0.0),
+            w: lanes.splat(0.0),
+            inv_det: lanes.splat(0.0),
+            found: 0,
+        },
+    };
+    let t = closest_sized(lanes, wide, p, t, group, &mut leaves);
+    (t, leaves.best)
+}
+
+/// The rays of `group` (one key) that hit something of a mesh's tree with
+/// `0 < t < t_max`.
+#[inline(always)]
+pub(crate) fn any_in_mesh<L: Lanes>(
+    lanes: L,
+    wide: &WideBvh,
+    packs: &[Pack],
+    p: &Packet<L>,
+    t_max: L::F,
+    group: u16,
+) -> u16 {
+    any_sized(lanes, wide, p, t_max, group, &mut PackAny { packs, p })
+}
+
+/// [`closest`] with a stack sized to the tree.
+#[inline(always)]
+pub(crate) fn closest_sized<L: Lanes, V: ClosestLeaves<L>>(
+    lanes: L,
+    wide: &WideBvh,
+    p: &Packet<L>,
+    t: L::F,
+    group: u16,
+    leaves: &mut V,
+) -> L::F {
+    let depth = wide.depth;
+    if depth <= SMALL_DEPTH {
+        closest::<L, { stack_size(SMALL_DEPTH) }, V>(lanes, wide, p, t, group, leaves)
+    } else if depth <= MEDIUM_DEPTH {
+        closest::<L, { stack_size(MEDIUM_DEPTH) }, V>(lanes, wide, p, t, group, leaves)
+    } else {
+        closest::<L, { stack_size(crate::MAX_DEPTH) }, V>(lanes, wide, p, t, group, leaves)
+    }
+}
+
+/// [`any`] with a stack sized to the tree.
+#[inline(always)]
+pub(crate) fn any_sized<L: Lanes, V: AnyLeaves<L>>(
+    lanes: L,
+    wide: &WideBvh,
+    p: &Packet<L>,
+    t_max: L::F,
+    group: u16,
+    leaves: &mut V,
+) -> u16 {
+    let depth = wide.depth;
+    if depth <= SMALL_DEPTH {
+        any::<L, { stack_size(SMALL_DEPTH) }, V>(lanes, wide, p, t_max, group, leaves)
+    } else if depth <= MEDIUM_DEPTH {
+        any::<L, { stack_size(MEDIUM_DEPTH) }, V>(lanes, wide, p, t_max, group, leaves)
+    } else {
+        any::<L, { stack_size(crate::MAX_DEPTH) }, V>(lanes, wide, p, t_max, group, leaves)
+    }
 }
 
 /// A child entry and the rays that entered it, in one word (stacked with
@@ -570,26 +792,20 @@ fn unpack_entry(e: u64) -> (u32, u16) {
 }
 
 /// The closest-hit walk of the rays of `group` (one key) through `wide`,
-/// with a stack of `N` entries.
+/// with a stack of `N` entries, each ray from its bound in `t` (`t_max`,
+/// or a nearer hit already found elsewhere); `leaves` tests the leaves and
+/// lowers the bounds. Returns the bounds at the end.
 #[inline(always)]
-fn closest<L: Lanes, const N: usize>(
+pub(crate) fn closest<L: Lanes, const N: usize, V: ClosestLeaves<L>>(
     lanes: L,
     wide: &WideBvh,
-    packs: &[Pack],
     p: &Packet<L>,
-    t_max: L::F,
+    mut t: L::F,
     group: u16,
-) -> Best<L> {
-    let mut best = Best {
-        t: t_max,
-        slot: lanes.splat_u(NO_SLOT),
-        v: lanes.splat(0.0),
-        w: lanes.splat(0.0),
-        inv_det: lanes.splat(0.0),
-        found: 0,
-    };
+    leaves: &mut V,
+) -> L::F {
     let Some(mut node) = wide.nodes.first() else {
-        return best;
+        return t;
     };
     let mut rays = group;
     let mut stack_e = [0u64; N];
@@ -605,20 +821,20 @@ fn closest<L: Lanes, const N: usize>(
             if child == 0 {
                 continue;
             }
-            let (t_in, m) = p.enter(lanes, node, c, best.t);
+            let (t_in, m) = p.enter(lanes, node, c, t);
             let m = m & rays;
             if m == 0 {
                 continue;
             }
-            let t = lanes.min_of(m, t_in);
+            let t_near = lanes.min_of(m, t_in);
             let mut at = n;
-            while at > 0 && near_t[at - 1] > t {
+            while at > 0 && near_t[at - 1] > t_near {
                 near_e[at] = near_e[at - 1];
                 near_t[at] = near_t[at - 1];
                 at -= 1;
             }
             near_e[at % W] = pack_entry(child, m);
-            near_t[at % W] = t;
+            near_t[at % W] = t_near;
             n += 1;
         }
         // Stack the others farthest first, so the nearer pop first.
@@ -637,13 +853,13 @@ fn closest<L: Lanes, const N: usize>(
                 Some(e) => unpack_entry(e),
                 None => loop {
                     if sp == 0 {
-                        return best;
+                        return t;
                     }
                     sp -= 1;
                     let (child, m) = unpack_entry(stack_e[sp]);
                     // The rays with no hit nearer than where the child is
                     // entered first.
-                    let m = m & lanes.le(lanes.splat(stack_t[sp]), best.t);
+                    let m = m & lanes.le(lanes.splat(stack_t[sp]), t);
                     if m != 0 {
                         break (child, m);
                     }
@@ -651,52 +867,28 @@ fn closest<L: Lanes, const N: usize>(
             };
             if child & LEAF_BIT == 0 {
                 let Some(next_node) = wide.nodes.get(child as usize) else {
-                    return best;
+                    return t;
                 };
                 node = next_node;
                 rays = m;
                 break;
             }
             let (first, count) = leaf_range(child);
-            for idx in first..first + count {
-                let Some(pack) = packs.get(idx) else { break };
-                for lane in 0..PACK_LANES {
-                    if pack.prim[lane] == u32::MAX {
-                        continue;
-                    }
-                    let Some(edges) = p.edges(lanes, pack, lane, m) else {
-                        continue;
-                    };
-                    // `mesh_bvh::tie_bound`, ray by ray: a slot before a
-                    // ray's best may hit at its very distance.
-                    let slot = (idx * PACK_LANES + lane) as u32;
-                    let earlier = best.found & lanes.gt_u(best.slot, lanes.splat_u(slot));
-                    let bound = lanes.select(earlier, lanes.next_up(best.t), best.t);
-                    let (t, inv_det, ok) = p.distance(lanes, &edges, bound);
-                    if ok != 0 {
-                        best.t = lanes.select(ok, t, best.t);
-                        best.slot = lanes.select_u(ok, lanes.splat_u(slot), best.slot);
-                        best.v = lanes.select(ok, edges.v, best.v);
-                        best.w = lanes.select(ok, edges.w, best.w);
-                        best.inv_det = lanes.select(ok, inv_det, best.inv_det);
-                        best.found |= ok;
-                    }
-                }
-            }
+            leaves.visit(lanes, first, count, m, &mut t);
         }
     }
 }
 
-/// The any-hit walk of the rays of `group` (one key): the rays hit with
-/// `0 < t < t_max`.
+/// The any-hit walk of the rays of `group` (one key) with a stack of `N`
+/// entries: the rays `leaves` finds hit with `0 < t < t_max`.
 #[inline(always)]
-fn any<L: Lanes, const N: usize>(
+pub(crate) fn any<L: Lanes, const N: usize, V: AnyLeaves<L>>(
     lanes: L,
     wide: &WideBvh,
-    packs: &[Pack],
     p: &Packet<L>,
     t_max: L::F,
     group: u16,
+    leaves: &mut V,
 ) -> u16 {
     let mut hit = 0u16;
     let Some(mut node) = wide.nodes.first() else {
@@ -738,23 +930,7 @@ fn any<L: Lanes, const N: usize>(
                 break;
             }
             let (first, count) = leaf_range(child);
-            let mut open = m;
-            'packs: for pack in packs.get(first..first + count).unwrap_or_default() {
-                for lane in 0..PACK_LANES {
-                    if pack.prim[lane] == u32::MAX {
-                        continue;
-                    }
-                    let Some(edges) = p.edges(lanes, pack, lane, open) else {
-                        continue;
-                    };
-                    let ok = p.distance(lanes, &edges, t_max).2;
-                    hit |= ok;
-                    open &= !ok;
-                    if open == 0 {
-                        break 'packs;
-                    }
-                }
-            }
+            hit |= leaves.visit(lanes, first, count, m, t_max);
             if hit == group {
                 return hit;
             }
@@ -796,29 +972,14 @@ impl PacketQuery for ClosestPacket<'_> {
         while todo != 0 {
             let group = rays.group(todo);
             todo &= !group;
-            // (No closures around the lanes' code: see `Packet::new`.)
-            let mut p = None;
-            if group.count_ones() >= MIN_PACKET {
-                let packet = Packet::new(lanes, &rays, group);
-                if packet.coherent(lanes, group) {
-                    p = Some(packet);
-                }
-            }
-            let Some(p) = p else {
+            let Some(p) = Packet::walked(lanes, &rays, group) else {
                 // Walked alone by the caller, outside the lanes' function
                 // (compiled into it, the single-ray walk ran slower).
                 alone |= group;
                 continue;
             };
-            let depth = self.wide.depth;
-            let best = if depth <= SMALL_DEPTH {
-                closest::<L, { stack_size(SMALL_DEPTH) }>(lanes, self.wide, self.packs, &p, t_max, group)
-            } else if depth <= MEDIUM_DEPTH {
-                closest::<L, { stack_size(MEDIUM_DEPTH) }>(lanes, self.wide, self.packs, &p, t_max, group)
-            } else {
-                closest::<L, { stack_size(crate::MAX_DEPTH) }>(lanes, self.wide, self.packs, &p, t_max, group)
-            };
-            let (t, slot) = (lanes.store(best.t), lanes.store_u(best.slot));
+            let (t, best) = closest_in_mesh(lanes, self.wide, self.packs, &p, t_max, group);
+            let (t, slot) = (lanes.store(t), lanes.store_u(best.slot));
             let (v, w, inv_det) = (lanes.store(best.v), lanes.store(best.w), lanes.store(best.inv_det));
             let mut found = best.found;
             while found != 0 {
@@ -865,28 +1026,13 @@ impl PacketQuery for AnyPacket<'_> {
         while todo != 0 {
             let group = rays.group(todo);
             todo &= !group;
-            // (No closures around the lanes' code: see `Packet::new`.)
-            let mut p = None;
-            if group.count_ones() >= MIN_PACKET {
-                let packet = Packet::new(lanes, &rays, group);
-                if packet.coherent(lanes, group) {
-                    p = Some(packet);
-                }
-            }
-            let Some(p) = p else {
+            let Some(p) = Packet::walked(lanes, &rays, group) else {
                 // Walked alone by the caller, outside the lanes' function
                 // (compiled into it, the single-ray walk ran slower).
                 alone |= group;
                 continue;
             };
-            let depth = self.wide.depth;
-            out |= if depth <= SMALL_DEPTH {
-                any::<L, { stack_size(SMALL_DEPTH) }>(lanes, self.wide, self.packs, &p, t_max, group)
-            } else if depth <= MEDIUM_DEPTH {
-                any::<L, { stack_size(MEDIUM_DEPTH) }>(lanes, self.wide, self.packs, &p, t_max, group)
-            } else {
-                any::<L, { stack_size(crate::MAX_DEPTH) }>(lanes, self.wide, self.packs, &p, t_max, group)
-            };
+            out |= any_in_mesh(lanes, self.wide, self.packs, &p, t_max, group);
         }
         (out, alone)
     }

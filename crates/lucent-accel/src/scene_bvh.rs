@@ -1,7 +1,9 @@
 //! Two-level BVH: a tree over instances, each an affine transform of a
 //! shared mesh BVH.
 
-use crate::mesh_bvh::LeafTest;
+use crate::mesh_bvh::{LeafTest, PacketLanes};
+use crate::packet::{PACKET, for_lanes};
+use crate::scene_packet::{AnyScenePacket, ClosestScenePacket};
 use crate::wide::{BoxTest, Leaves, Query, WideBvh, leaf_entry};
 use crate::{Aabb, BuildParams, Bvh, MeshBvh, MeshHit};
 use lucent_geom::{Affine3A, Ray};
@@ -64,7 +66,7 @@ impl Instance {
 
 /// `ray` moved by `object_from_world` (direction not renormalised).
 #[inline(always)]
-fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
+pub(crate) fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
     Ray::new(
         object_from_world.transform_point3(ray.origin),
         object_from_world.transform_vector3(ray.dir),
@@ -76,11 +78,11 @@ fn object_ray(object_from_world: &Affine3A, ray: &Ray) -> Ray {
 /// instance entered costs one lookup, not one in the tree's order and one
 /// among the instances.
 #[derive(Clone, Copy, Debug)]
-struct Placed {
-    object_from_world: Affine3A,
-    mesh: u32,
+pub(crate) struct Placed {
+    pub(crate) object_from_world: Affine3A,
+    pub(crate) mesh: u32,
     /// Its index among the instances.
-    instance: u32,
+    pub(crate) instance: u32,
 }
 
 /// A hit in a two-level scene.
@@ -101,15 +103,19 @@ pub struct SceneHit {
 /// A BVH over instances of shared mesh BVHs.
 #[derive(Clone, Debug, Default)]
 pub struct SceneBvh {
-    meshes: Vec<Arc<MeshBvh>>,
+    pub(crate) meshes: Vec<Arc<MeshBvh>>,
     instances: Vec<Instance>,
     tlas: Bvh,
     /// The instances in `tlas.prim_indices` order.
-    placed: Vec<Placed>,
+    pub(crate) placed: Vec<Placed>,
     /// The instance tree collapsed to 8 wide (leaves name runs of
     /// `tlas.prim_indices`), which queries walk with the mesh trees' walk
     /// and box test.
-    wide: WideBvh,
+    pub(crate) wide: WideBvh,
+    /// The AVX-512 lanes of the packet walk, where the machine has them
+    /// ([`SceneBvh::intersect_packet`]).
+    #[cfg(target_arch = "x86_64")]
+    packet: Option<crate::kernel::Avx512>,
 }
 
 impl SceneBvh {
@@ -158,6 +164,8 @@ impl SceneBvh {
             tlas,
             placed,
             wide,
+            #[cfg(target_arch = "x86_64")]
+            packet: crate::kernel::Avx512::detect(),
         }
     }
 
@@ -212,6 +220,25 @@ impl SceneBvh {
         })
     }
 
+    /// The scene hit of the instance at `at` in `placed`, hit by `ray`
+    /// (world space) in slot `slot` of its mesh, its distance recomputed in
+    /// f64 as [`MeshBvh::intersect`] does (within `(0, t_max)`).
+    #[inline(always)]
+    pub(crate) fn refine<L: LeafTest>(
+        &self,
+        leaves: L,
+        ray: &Ray,
+        at: usize,
+        slot: usize,
+        hit: MeshHit,
+        t_max: f32,
+    ) -> Option<SceneHit> {
+        let p = self.placed.get(at)?;
+        let mesh = self.meshes.get(p.mesh as usize)?;
+        let ray = object_ray(&p.object_from_world, ray);
+        Some(scene_hit(mesh.refine(leaves, &ray, slot, hit, t_max), p.instance))
+    }
+
     /// Whether anything is hit with `0 < t < t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         self.run(Any {
@@ -219,6 +246,116 @@ impl SceneBvh {
             ray,
             t_max,
         })
+    }
+
+    /// The closest hits of up to [`PACKET`] rays at once: lane `l` of the
+    /// answer is [`SceneBvh::intersect`]`(&rays[l], t_max[l])` where bit `l`
+    /// of `active` is set, bit for bit, and `None` elsewhere.
+    ///
+    /// On processors with AVX-512, rays that start near one another and
+    /// point the same way (a pixel's camera rays) are walked together
+    /// through the instance tree and, moved into each instance they reach,
+    /// through its mesh (`crate::scene_packet`), as
+    /// [`MeshBvh::intersect_packet`] walks a mesh; other rays, and all of
+    /// them elsewhere, are walked one at a time.
+    ///
+    /// ```
+    /// use lucent_accel::{BuildParams, Instance, MeshBvh, PACKET, SceneBvh};
+    /// use lucent_geom::{shapes, Affine3A, Ray, Vec3};
+    /// use std::sync::Arc;
+    /// let sphere = Arc::new(MeshBvh::build(&shapes::icosphere(3), &BuildParams::default()));
+    /// let instances = [-1.5f32, 1.5]
+    ///     .map(|x| Instance::new(Affine3A::from_translation(Vec3::new(x, 0.0, 0.0)), 0))
+    ///     .into_iter()
+    ///     .flatten()
+    ///     .collect();
+    /// let scene = SceneBvh::build(vec![sphere], instances, &BuildParams::default());
+    /// let rays: [Ray; PACKET] =
+    ///     std::array::from_fn(|l| Ray::new(Vec3::new(-2.0 + 0.25 * l as f32, 0.1, -5.0), Vec3::Z));
+    /// let hits = scene.intersect_packet(&rays, &[f32::INFINITY; PACKET], 0xffff);
+    /// for (ray, hit) in rays.iter().zip(hits) {
+    ///     assert_eq!(hit, scene.intersect(ray, f32::INFINITY));
+    /// }
+    /// ```
+    pub fn intersect_packet(
+        &self,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<SceneHit>; PACKET] {
+        self.intersect_packet_in(self.packet_lanes(), rays, t_max, active)
+    }
+
+    /// Whether anything is hit with `0 < t < t_max[l]` by each of up to
+    /// [`PACKET`] rays: bit `l` of the answer is
+    /// [`SceneBvh::occluded`]`(&rays[l], t_max[l])` where bit `l` of
+    /// `active` is set, and clear elsewhere. Rays are walked together as
+    /// [`SceneBvh::intersect_packet`] walks them.
+    pub fn occluded_packet(&self, rays: &[Ray; PACKET], t_max: &[f32; PACKET], active: u16) -> u16 {
+        self.occluded_packet_in(self.packet_lanes(), rays, t_max, active)
+    }
+
+    /// Whether [`SceneBvh::intersect_packet`] and
+    /// [`SceneBvh::occluded_packet`] walk rays together here (AVX-512),
+    /// rather than one at a time.
+    pub fn walks_packets(&self) -> bool {
+        !matches!(self.packet_lanes(), PacketLanes::Alone)
+    }
+
+    /// The lanes packet queries run in: AVX-512 where the processor has
+    /// it, else none (every ray alone).
+    fn packet_lanes(&self) -> PacketLanes {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(k) = self.packet {
+            return PacketLanes::Avx512(k);
+        }
+        PacketLanes::Alone
+    }
+
+    /// [`SceneBvh::intersect_packet`] in lanes `lanes`.
+    pub(crate) fn intersect_packet_in(
+        &self,
+        lanes: PacketLanes,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<SceneHit>; PACKET] {
+        if matches!(lanes, PacketLanes::Alone) {
+            let mut out = [None; PACKET];
+            for_lanes(active, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+            return out;
+        }
+        let (mut out, alone) = lanes.run(ClosestScenePacket {
+            scene: self,
+            rays,
+            t_max,
+            active,
+        });
+        for_lanes(alone, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+        out
+    }
+
+    /// [`SceneBvh::occluded_packet`] in lanes `lanes`.
+    pub(crate) fn occluded_packet_in(
+        &self,
+        lanes: PacketLanes,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> u16 {
+        if matches!(lanes, PacketLanes::Alone) {
+            let mut out = 0u16;
+            for_lanes(active, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
+            return out;
+        }
+        let (mut out, alone) = lanes.run(AnyScenePacket {
+            scene: self,
+            rays,
+            t_max,
+            active,
+        });
+        for_lanes(alone, |l| out |= u16::from(self.occluded(&rays[l], t_max[l])) << l);
+        out
     }
 
     /// Calls `visit` for every hit with `0 < t < t_max`, in no particular
@@ -263,8 +400,21 @@ impl Query for Closest<'_> {
         self.scene
             .wide
             .walk_sized::<true, B, _, ()>(boxes, self.ray, self.t_max, &mut visit, &mut ());
-        visit.best
+        let best = visit.best?;
+        self.scene
+            .refine(leaves, self.ray, best.at, best.slot, best.hit, self.t_max)
     }
+}
+
+/// A hit of the instance walk before refinement.
+#[derive(Clone, Copy)]
+struct InstanceHit {
+    /// Its instance's index in `placed`, and among the instances.
+    at: usize,
+    instance: u32,
+    /// Its slot in the mesh (`LANES * pack + lane`).
+    slot: usize,
+    hit: MeshHit,
 }
 
 /// The leaves of the closest-hit instance walk: the nearest hit so far.
@@ -273,27 +423,56 @@ struct ClosestInstances<'a, B, L> {
     ray: &'a Ray,
     boxes: B,
     leaves: L,
-    best: Option<SceneHit>,
+    best: Option<InstanceHit>,
 }
 
 impl<B: BoxTest, L: LeafTest> Leaves for &mut ClosestInstances<'_, B, L> {
     #[inline(always)]
     fn visit(&mut self, first: usize, count: usize, t_bound: &mut f32) -> bool {
         let scene = self.scene;
-        for p in scene.placed.get(first..first + count).unwrap_or_default() {
-            if let Some(mesh) = scene.meshes.get(p.mesh as usize)
-                && let Some(h) = mesh.intersect_in(
-                    self.boxes,
-                    self.leaves,
-                    &object_ray(&p.object_from_world, self.ray),
-                    *t_bound,
-                )
-            {
-                *t_bound = h.t;
-                self.best = Some(scene_hit(h, p.instance));
+        let run = scene.placed.get(first..first + count).unwrap_or_default();
+        for (k, p) in run.iter().enumerate() {
+            let Some(mesh) = scene.meshes.get(p.mesh as usize) else {
+                continue;
+            };
+            // Among equally close hits the lowest instance wins, whatever
+            // order the walk visits the instances in (so a packet walk
+            // finds the same hit): an instance before the best one may hit
+            // at the best distance itself.
+            let bound = instance_bound(self.best.map(|b| b.instance), p.instance, *t_bound);
+            let ray = object_ray(&p.object_from_world, self.ray);
+            if let Some((slot, hit)) = mesh.closest_in(self.boxes, self.leaves, &ray, bound) {
+                *t_bound = hit.t;
+                self.best = Some(InstanceHit {
+                    at: first + k,
+                    instance: p.instance,
+                    slot,
+                    hit,
+                });
             }
         }
         false
+    }
+}
+
+/// The bound instance `instance` is walked with when the best hit so far,
+/// at `t_bound`, lies in instance `best`: an instance before the best one
+/// may still hit at that very distance (the next float up, since the
+/// walks keep `t < bound`), a later one must be strictly nearer. So among
+/// equally close hits the lowest instance wins whatever order the instances
+/// are visited in, as the lowest slot does within a mesh
+/// (`mesh_bvh::tie_bound`), and the packet walk (`crate::scene_packet`)
+/// finds the single-ray walk's hit, bit for bit. Instances are compared by
+/// their hits' distances before refinement (the refined distance of one
+/// hit can order it otherwise against another's unrefined one), and the
+/// winner alone is refined ([`SceneBvh::refine`]).
+#[inline(always)]
+pub(crate) fn instance_bound(best: Option<u32>, instance: u32, t_bound: f32) -> f32 {
+    match best {
+        // A best hit's distance is finite and positive, so the next float
+        // up is its bit pattern plus one.
+        Some(b) if instance < b => f32::from_bits(t_bound.to_bits() + 1),
+        _ => t_bound,
     }
 }
 
@@ -350,7 +529,7 @@ impl<B: BoxTest, L: LeafTest> Leaves for AnyInstances<'_, B, L> {
     }
 }
 
-fn scene_hit(h: MeshHit, instance: u32) -> SceneHit {
+pub(crate) fn scene_hit(h: MeshHit, instance: u32) -> SceneHit {
     SceneHit {
         t: h.t,
         u: h.u,
@@ -361,7 +540,7 @@ fn scene_hit(h: MeshHit, instance: u32) -> SceneHit {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use lucent_geom::{Quat, Vec3, shapes};
 
@@ -480,10 +659,41 @@ mod tests {
         ]);
     }
 
+    pub(crate) fn bits(h: Option<SceneHit>) -> Option<(u32, u32, u32, u32, u32)> {
+        h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim, h.instance))
+    }
+
+    /// The closest hit by the rule of the scene's walks, testing every
+    /// instance in turn: each instance's closest hit before refinement,
+    /// the nearest of them (the lowest instance among equals), refined.
+    pub(crate) fn nearest_instance(
+        meshes: &[Arc<MeshBvh>],
+        instances: &[Instance],
+        ray: &Ray,
+        t_max: f32,
+    ) -> Option<SceneHit> {
+        let mut best: Option<(usize, usize, MeshHit)> = None;
+        for (idx, inst) in instances.iter().enumerate() {
+            let Some(mesh) = meshes.get(inst.mesh() as usize) else {
+                continue;
+            };
+            if let Some((slot, h)) = mesh.closest_alone(&inst.object_ray(ray), t_max)
+                && best.is_none_or(|b| h.t < b.2.t)
+            {
+                best = Some((idx, slot, h));
+            }
+        }
+        let (idx, slot, h) = best?;
+        let inst = &instances[idx];
+        let mesh = &meshes[inst.mesh() as usize];
+        let h = mesh.refine(crate::mesh_bvh::PortableLeaf, &inst.object_ray(ray), slot, h, t_max);
+        Some(scene_hit(h, idx as u32))
+    }
+
     /// 60 instances (scaled, rotated, overlapping) of `meshes` in turn:
-    /// the scene's queries find the nearest hit (same t bit for bit, same
-    /// instance and triangle unless two are hit at the same t), occlusion
-    /// and every hit that the public queries of each instance find.
+    /// the scene's queries find the nearest hit of [`nearest_instance`]
+    /// bit for bit, occlusion and every hit that the public queries of
+    /// each instance find.
     fn matches_testing_every_instance(meshes: Vec<Arc<MeshBvh>>) {
         use lucent_geom::Pcg32;
         let params = BuildParams::default();
@@ -508,26 +718,16 @@ mod tests {
             let o = Vec3::new(10.0 * q() - 5.0, 4.0 * q() - 2.0, 10.0 * q() - 5.0);
             let ray = Ray::new(o, Vec3::new(q() - 0.5, q() - 0.5, q() - 0.5));
             let t_max = [f32::INFINITY, 3.0][i % 2];
-            let mut best: Option<SceneHit> = None;
             let mut all = 0;
-            for (idx, inst) in instances.iter().enumerate() {
-                let obj = inst.object_ray(&ray);
-                let mesh = &meshes[inst.mesh() as usize];
-                mesh.for_each_hit(&obj, t_max, |_| {
+            for inst in &instances {
+                meshes[inst.mesh() as usize].for_each_hit(&inst.object_ray(&ray), t_max, |_| {
                     all += 1;
                     false
                 });
-                if let Some(h) = mesh.intersect(&obj, best.map_or(t_max, |b| b.t)) {
-                    best = Some(scene_hit(h, idx as u32));
-                }
             }
+            let best = nearest_instance(&meshes, &instances, &ray, t_max);
             let got = scene.intersect(&ray, t_max);
-            assert_eq!(got.map(|h| h.t.to_bits()), best.map(|h| h.t.to_bits()), "{ray:?}");
-            if let (Some(g), Some(b)) = (got, best)
-                && (g.instance, g.prim) != (b.instance, b.prim)
-            {
-                assert_eq!(g.t, b.t);
-            }
+            assert_eq!(bits(got), bits(best), "{ray:?}");
             assert_eq!(scene.occluded(&ray, t_max), best.is_some());
             let mut walked = 0;
             scene.for_each_hit(&ray, t_max, |_| {
@@ -538,5 +738,117 @@ mod tests {
             hits += usize::from(best.is_some());
         }
         assert!(hits > 500, "{hits}");
+    }
+
+    /// A grid of squares in the plane z = 0, each split along one diagonal
+    /// (or, `flipped`, the other), plus (`far`) a triangle far off in the
+    /// plane, so that its tree's box differs from the grid's own.
+    pub(crate) fn grid(flipped: bool, far: bool) -> lucent_geom::TriMesh {
+        let (mut positions, mut indices) = (Vec::new(), Vec::new());
+        for y in 0..8 {
+            for x in 0..8 {
+                let base = positions.len() as u32;
+                let (x, y) = (x as f32 * 0.25 - 1.0, y as f32 * 0.25 - 1.0);
+                positions.extend([
+                    Vec3::new(x, y, 0.0),
+                    Vec3::new(x + 0.25, y, 0.0),
+                    Vec3::new(x + 0.25, y + 0.25, 0.0),
+                    Vec3::new(x, y + 0.25, 0.0),
+                ]);
+                if flipped {
+                    indices.extend([[base, base + 1, base + 3], [base + 1, base + 2, base + 3]]);
+                } else {
+                    indices.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+                }
+            }
+        }
+        if far {
+            let base = positions.len() as u32;
+            positions.extend([
+                Vec3::new(5.0, 5.0, 0.0),
+                Vec3::new(6.0, 5.0, 0.0),
+                Vec3::new(5.0, 6.0, 0.0),
+            ]);
+            indices.push([base, base + 1, base + 2]);
+        }
+        lucent_geom::TriMesh::new(positions, indices).unwrap_or_default()
+    }
+
+    /// Instances whose surfaces coincide, with the meshes they name: the
+    /// grid and the grid with a far triangle (boxes of other sizes, so a
+    /// walk reaches them in an order that depends on the ray) at the same
+    /// transforms, exact ties at every hit, in both index orders; the grid
+    /// split along the other diagonal and turned a quarter about its
+    /// normal (exactly: a permutation matrix) over them, whose hits are
+    /// as far in exact arithmetic but not in f32, so that refining the
+    /// distances before comparing them would order them otherwise; and
+    /// spheres overlapping all of that.
+    pub(crate) fn coincident_instances() -> (Vec<Arc<MeshBvh>>, Vec<Instance>) {
+        let params = BuildParams::default();
+        let meshes = vec![
+            Arc::new(MeshBvh::build(&grid(false, false), &params)),
+            Arc::new(MeshBvh::build(&grid(false, true), &params)),
+            Arc::new(MeshBvh::build(&grid(true, false), &params)),
+            Arc::new(MeshBvh::build(&shapes::icosphere(2), &params)),
+        ];
+        let quarter = lucent_geom::Mat3::from_cols(Vec3::Y, -Vec3::X, Vec3::Z);
+        let tilted = Affine3A::from_scale_rotation_translation(
+            Vec3::new(1.5, 0.75, 1.0),
+            Quat::from_rotation_x(0.4) * Quat::from_rotation_z(0.3),
+            Vec3::new(0.5, -0.25, 0.5),
+        );
+        let mut placed = Vec::new();
+        for xf in [Affine3A::IDENTITY, tilted] {
+            let turned = xf * Affine3A::from_mat3(quarter);
+            placed.extend([(xf, 0), (xf, 1), (turned, 2), (xf, 1), (xf, 0), (turned, 2)]);
+        }
+        placed.extend([
+            (Affine3A::from_scale(Vec3::splat(0.5)), 3),
+            (Affine3A::from_translation(Vec3::new(0.5, 0.5, 0.0)), 3),
+        ]);
+        let instances = placed.into_iter().filter_map(|(xf, m)| Instance::new(xf, m)).collect();
+        (meshes, instances)
+    }
+
+    /// Where instances' surfaces coincide, the walk finds the rule's hit
+    /// (the nearest before refinement, the lowest instance among equals),
+    /// whatever order it visits them in, with every kernel.
+    #[test]
+    fn coincident_instances_give_the_lowest_instance_and_unrefined_order() {
+        use lucent_geom::Pcg32;
+        let (meshes, instances) = coincident_instances();
+        let portable: Vec<Arc<MeshBvh>> = meshes
+            .iter()
+            .map(|m| Arc::new((**m).clone().with_vector_kernel(false)))
+            .collect();
+        for meshes in [meshes, portable] {
+            let scene = SceneBvh::build(meshes.clone(), instances.clone(), &BuildParams::default());
+            let mut rng = Pcg32::new(8, 3);
+            let mut q = move || rng.next_f32();
+            let (mut hits, mut ties) = (0, 0);
+            for i in 0..4000 {
+                let o = Vec3::new(4.0 * q() - 2.0, 4.0 * q() - 2.0, [-3.0, 3.0][i % 2] * (1.0 + q()));
+                let aim = Vec3::new(2.0 * q() - 1.0, 2.0 * q() - 1.0, 0.0);
+                let ray = Ray::new(o, aim - o);
+                let t_max = [f32::INFINITY, 4.0][i % 3 / 2];
+                let want = nearest_instance(&meshes, &instances, &ray, t_max);
+                assert_eq!(bits(scene.intersect(&ray, t_max)), bits(want), "{ray:?}");
+                hits += usize::from(want.is_some());
+                // Rays for which a later instance's hit is exactly as near.
+                if let Some(w) = want {
+                    let same = instances
+                        .iter()
+                        .enumerate()
+                        .skip(w.instance as usize + 1)
+                        .any(|(_, inst)| {
+                            meshes[inst.mesh() as usize]
+                                .closest_alone(&inst.object_ray(&ray), t_max)
+                                .is_some_and(|(_, h)| h.t == w.t)
+                        });
+                    ties += usize::from(same);
+                }
+            }
+            assert!(hits > 2000 && ties > 1000, "{hits} hits, {ties} tied");
+        }
     }
 }

@@ -14,13 +14,74 @@
 //! shading code cannot tell the difference.
 
 use crate::RenderInstance;
-use lucent_accel::{BuildParams, MeshBvh, PACKET, SceneHit};
+#[cfg(doc)]
+use crate::RenderScene;
+use lucent_accel::{BuildParams, MeshBvh, PACKET, SceneBvh, SceneHit};
 use lucent_geom::{Ray, TriMesh, Vec3};
 use std::sync::Arc;
 
 /// Scenes whose instances hold more triangles than this are not flattened
 /// (the copy would cost too much memory).
 pub const MAX_FLAT_TRIANGLES: usize = 1 << 24;
+
+/// The tree the path tracer finds hits in: the flat tree where the scene
+/// has one, else the scene's two-level tree ([`RenderScene::bvh`]), for
+/// callers that trace packets of rays through it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum TracedTree<'a> {
+    /// The one-level tree ([`RenderScene::flat_bvh`]).
+    Flat(&'a FlatBvh),
+    /// The two-level tree.
+    Scene(&'a SceneBvh),
+}
+
+impl TracedTree<'_> {
+    /// The closest hits of the rays of `active` among up to [`PACKET`]
+    /// ([`FlatBvh::intersect_packet`], [`SceneBvh::intersect_packet`]):
+    /// those of the tree's one-ray query, bit for bit.
+    #[inline]
+    pub(crate) fn intersect_packet(
+        &self,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<SceneHit>; PACKET] {
+        match self {
+            TracedTree::Flat(flat) => flat.intersect_packet(rays, t_max, active),
+            TracedTree::Scene(bvh) => bvh.intersect_packet(rays, t_max, active),
+        }
+    }
+
+    /// Whether each ray of `active` among up to [`PACKET`] is blocked
+    /// before its `t_max` ([`FlatBvh::occluded_packet`],
+    /// [`SceneBvh::occluded_packet`]).
+    #[inline]
+    pub(crate) fn occluded_packet(&self, rays: &[Ray; PACKET], t_max: &[f32; PACKET], active: u16) -> u16 {
+        match self {
+            TracedTree::Flat(flat) => flat.occluded_packet(rays, t_max, active),
+            TracedTree::Scene(bvh) => bvh.occluded_packet(rays, t_max, active),
+        }
+    }
+
+    /// The closest hit of one ray with `0 < t < t_max`.
+    #[inline]
+    pub(crate) fn intersect(&self, ray: &Ray, t_max: f32) -> Option<SceneHit> {
+        match self {
+            TracedTree::Flat(flat) => flat.intersect(ray, t_max),
+            TracedTree::Scene(bvh) => bvh.intersect(ray, t_max),
+        }
+    }
+
+    /// Whether [`TracedTree::intersect_packet`] walks rays together on this
+    /// processor (else one at a time, and a caller gains nothing by
+    /// gathering them).
+    pub(crate) fn walks_packets(&self) -> bool {
+        match self {
+            TracedTree::Flat(flat) => flat.walks_packets(),
+            TracedTree::Scene(bvh) => bvh.walks_packets(),
+        }
+    }
+}
 
 /// A single-level BVH over render-space triangles, with each triangle's
 /// instance and index in its mesh.

@@ -60,7 +60,7 @@
 //! [`PathTracer::trace_primary`] is its variant compiled without that work.
 
 use crate::aov::{AovRecorder, AovSample};
-use crate::flat::FlatBvh;
+use crate::flat::{FlatBvh, TracedTree};
 use crate::interaction::SurfaceInteraction;
 use crate::isa::Isa;
 use crate::lights::LightSample;
@@ -181,9 +181,17 @@ impl<'a> PathTracer<'a> {
         }
     }
 
-    /// The scene's one-level tree, when it has one.
-    pub(crate) fn flat(&self) -> Option<&'a FlatBvh> {
-        self.flat.filter(|_| !self.scene.features.alpha_tested)
+    /// The tree this tracer finds hits in (the flat tree, else the
+    /// scene's), where no alpha test decides them: a caller may trace
+    /// camera rays through it and go on with [`PathTracer::trace_primary_from`].
+    pub(crate) fn tree(&self) -> Option<TracedTree<'a>> {
+        if self.scene.features.alpha_tested {
+            return None;
+        }
+        Some(match self.flat {
+            Some(flat) => TracedTree::Flat(flat),
+            None => TracedTree::Scene(&self.scene.bvh),
+        })
     }
 
     /// Radiance along a camera ray, one path, random numbers from `rng`.
@@ -204,10 +212,10 @@ impl<'a> PathTracer<'a> {
 
     /// The paths of the camera rays `rays[l]` for the lanes `l` of
     /// `active`, each with its random stream `rngs[l]`, traced together
-    /// vertex by vertex through the flat tree `flat` (this tracer's, from
-    /// [`PathTracer::flat`]): at each vertex the live paths' shadow rays
+    /// vertex by vertex through `tree` (this tracer's, from
+    /// [`PathTracer::tree`]): at each vertex the live paths' shadow rays
     /// and then their next segments are traced as packets
-    /// ([`FlatBvh::occluded_packet`], [`FlatBvh::intersect_packet`]), which
+    /// ([`TracedTree::occluded_packet`], [`TracedTree::intersect_packet`]), which
     /// walk together the rays that point alike (a pixel's camera rays,
     /// shadow rays towards one light, reflections off one mirror) and the
     /// others one by one. Each path makes the very operations and draws of
@@ -216,7 +224,7 @@ impl<'a> PathTracer<'a> {
     #[inline(always)]
     pub(crate) fn trace_batch(
         &self,
-        flat: &FlatBvh,
+        tree: &TracedTree<'_>,
         rays: &[Ray; PACKET],
         active: u16,
         rngs: &mut [Pcg32; PACKET],
@@ -224,9 +232,9 @@ impl<'a> PathTracer<'a> {
         out: &mut [Vec3; PACKET],
     ) {
         if self.scene.features.emissive {
-            self.trace_batch_as::<true>(flat, rays, active, rngs, stats, out);
+            self.trace_batch_as::<true>(tree, rays, active, rngs, stats, out);
         } else {
-            self.trace_batch_as::<false>(flat, rays, active, rngs, stats, out);
+            self.trace_batch_as::<false>(tree, rays, active, rngs, stats, out);
         }
     }
 
@@ -234,7 +242,7 @@ impl<'a> PathTracer<'a> {
     #[inline(always)]
     fn trace_batch_as<const EMISSIVE: bool>(
         &self,
-        flat: &FlatBvh,
+        tree: &TracedTree<'_>,
         rays: &[Ray; PACKET],
         active: u16,
         rngs: &mut [Pcg32; PACKET],
@@ -249,7 +257,7 @@ impl<'a> PathTracer<'a> {
         let mut paths = rays.map(PathState::new);
         let (mut unused, mut rec) = (AovSample::default(), AovRecorder::new());
         let mut segments = *rays;
-        let mut hits = flat.intersect_packet(&segments, &[f32::INFINITY; PACKET], active);
+        let mut hits = tree.intersect_packet(&segments, &[f32::INFINITY; PACKET], active);
         let mut shadow_rays = *rays;
         let mut shadow_t = [0.0f32; PACKET];
         let mut lights = [Vec3A::ZERO; PACKET];
@@ -283,7 +291,7 @@ impl<'a> PathTracer<'a> {
                 }
             }
             if tests != 0 {
-                let mut lit = tests & !flat.occluded_packet(&shadow_rays, &shadow_t, tests);
+                let mut lit = tests & !tree.occluded_packet(&shadow_rays, &shadow_t, tests);
                 while lit != 0 {
                     let l = lit.trailing_zeros() as usize % PACKET;
                     lit &= lit - 1;
@@ -299,7 +307,7 @@ impl<'a> PathTracer<'a> {
                 lanes &= lanes - 1;
                 if !(paths[l].prev_delta || paths[l].prev_pdf >= NARROW_PDF) {
                     live &= !(1 << l);
-                    let found = flat.intersect(&segments[l], f32::INFINITY);
+                    let found = tree.intersect(&segments[l], f32::INFINITY);
                     self.go_on::<EMISSIVE, false, false>(
                         &mut paths[l],
                         found,
@@ -313,7 +321,7 @@ impl<'a> PathTracer<'a> {
             if live == 0 {
                 break;
             }
-            hits = flat.intersect_packet(&segments, &[f32::INFINITY; PACKET], live);
+            hits = tree.intersect_packet(&segments, &[f32::INFINITY; PACKET], live);
         }
         let mut lanes = active;
         while lanes != 0 {

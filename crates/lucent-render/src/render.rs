@@ -1,7 +1,7 @@
 //! The parallel, deterministic render loop.
 
 use crate::aov::{AovFilm, AovSample, DeltaLightSums, SpecularSums};
-use crate::flat::FlatBvh;
+use crate::flat::TracedTree;
 use crate::isa::{Isa, Kernel, LaneIsa};
 use crate::lane::{LaneCounts, LaneTracer};
 use crate::path::PathTracer;
@@ -346,15 +346,16 @@ impl<'a> PixelSampler<'a> {
         (self.camera.ray(col as f32 + jx, row as f32 + jy), rng)
     }
 
-    /// The path tracer and its flat tree, where camera rays are worth
-    /// tracing in packets ([`FlatBvh::intersect_packet`] walks them
-    /// together on this processor, and no alpha test decides hits): a
-    /// row's samples then trace their camera rays sixteen at a time
-    /// ([`Row`]), which finds the same hits, so the same image bit for bit.
+    /// The path tracer and its tree (the flat one, else the scene's),
+    /// where camera rays are worth tracing in packets
+    /// ([`TracedTree::intersect_packet`] walks them together on this
+    /// processor, and no alpha test decides hits): a row's samples then
+    /// trace their camera rays sixteen at a time ([`Row`]), which finds the
+    /// same hits, so the same image bit for bit.
     #[inline(always)]
-    fn camera_packets(&self) -> Option<(&PathTracer<'a>, &'a FlatBvh)> {
+    fn camera_packets(&self) -> Option<(&PathTracer<'a>, TracedTree<'a>)> {
         match &self.tracer {
-            Tracer::Path(path) => path.flat().filter(|f| f.walks_packets()).map(|f| (path, f)),
+            Tracer::Path(path) => path.tree().filter(|t| t.walks_packets()).map(|t| (path, t)),
             Tracer::Whitted(_) => None,
         }
     }
@@ -550,7 +551,7 @@ impl Kernel for Row<'_, '_> {
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
         let isa = self.sampler.isa();
-        if let Some((path, flat)) = self.sampler.camera_packets() {
+        if let Some((path, tree)) = self.sampler.camera_packets() {
             // The row's samples in order (pixel by pixel, each pixel's in
             // sample order), sixteen at a time: their camera rays traced
             // together, then each path on from its hit, added to its pixel
@@ -571,7 +572,7 @@ impl Kernel for Row<'_, '_> {
                 }
                 let active = (((1u32 << n) - 1) & 0xffff) as u16;
                 let mut radiance = [Vec3::ZERO; PACKET];
-                path.trace_batch(flat, &rays, active, &mut rngs, &mut stats, &mut radiance);
+                path.trace_batch(&tree, &rays, active, &mut rngs, &mut stats, &mut radiance);
                 for l in 0..n {
                     if let Some(px) = self.pixels.get_mut(cols[l]) {
                         isa.add_sample(px, radiance[l]);
@@ -728,6 +729,35 @@ mod tests {
         let (mut film, mut aovs) = (Film::new(w, h), AovFilm::new(w, h));
         trace_rows_aov(isa, rs, settings, &mut film, &mut aovs, 0..3, &|_| {}, &never);
         (plain, film, aovs)
+    }
+
+    /// The path tracer's camera rays, traced sixteen at a time through
+    /// the flat tree or (where extract builds none) the scene's two-level
+    /// tree wherever the processor walks packets, give the image of the
+    /// AOV loop, which traces them one at a time, bit for bit.
+    #[test]
+    fn camera_packets_through_either_tree_render_the_one_ray_bits() {
+        use crate::{ExtractOptions, extract_with};
+        use lucent_scene::fixtures;
+        for scene in [fixtures::ball_under_sun(), fixtures::glowing_box(0.7, 4.0)] {
+            for flat_bvh in [true, false] {
+                let options = ExtractOptions {
+                    flat_bvh,
+                    ..ExtractOptions::default()
+                };
+                let rs = extract_with(&scene, &options).unwrap_or_else(|e| panic!("{e}"));
+                assert_eq!(rs.flat_bvh().is_some(), flat_bvh);
+                let settings = RenderSettings {
+                    width: 24,
+                    height: 16,
+                    integrator: Integrator::Path,
+                    ..RenderSettings::default()
+                };
+                let (plain, film, _) = render_in(Isa::detect(), &rs, &settings);
+                assert!(plain.sum.iter().any(|p| *p != ExactRgb::ZERO));
+                assert!(plain == film, "flat tree {flat_bvh}: the images differ");
+            }
+        }
     }
 
     #[test]

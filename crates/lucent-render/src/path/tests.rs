@@ -382,8 +382,13 @@ fn a_batch_traces_each_path_as_it_is_traced_alone_bit_for_bit() {
         fixtures::varnished_floor_under_ceiling(),
     ];
     let mut batches = 0;
-    for (k, scene) in scenes.iter().enumerate() {
-        let rs = extract(scene).unwrap_or_else(|e| panic!("{e}"));
+    for (k, (scene, flat_bvh)) in scenes.iter().flat_map(|s| [(s, true), (s, false)]).enumerate() {
+        let options = crate::ExtractOptions {
+            flat_bvh,
+            ..crate::ExtractOptions::default()
+        };
+        let rs = crate::extract_with(scene, &options).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(rs.flat_bvh().is_some(), flat_bvh);
         let s = RenderSettings {
             width: 24,
             height: 16,
@@ -394,8 +399,8 @@ fn a_batch_traces_each_path_as_it_is_traced_alone_bit_for_bit() {
             ..RenderSettings::default()
         };
         let tracer = PathTracer::new(&rs, &s);
-        let Some(flat) = tracer.flat() else {
-            panic!("scene {k}: no flat tree");
+        let Some(tree) = tracer.tree() else {
+            panic!("scene {k}: no tree to trace packets through");
         };
         let sampler = PixelSampler::new(&rs, &s, s.width, s.height);
         for row in 0..s.height {
@@ -430,7 +435,7 @@ fn a_batch_traces_each_path_as_it_is_traced_alone_bit_for_bit() {
                     .collect();
                 let mut together = RayStats::default();
                 let mut out = [Vec3::ZERO; PACKET];
-                tracer.trace_batch(flat, &rays, active, &mut rngs, &mut together, &mut out);
+                tracer.trace_batch(&tree, &rays, active, &mut rngs, &mut together, &mut out);
                 for l in 0..PACKET {
                     if let Some(want) = want[l] {
                         assert_eq!(
@@ -445,5 +450,5 @@ fn a_batch_traces_each_path_as_it_is_traced_alone_bit_for_bit() {
             }
         }
     }
-    assert!(batches > 1000);
+    assert!(batches > 2000);
 }
