@@ -239,16 +239,16 @@ impl Kernel for PassRow<'_, '_> {
     #[inline(always)]
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
-        let isa = self.sampler.isa();
-        for (col, px) in self.pixels.iter_mut().enumerate() {
-            if self.cut.load(Ordering::Relaxed) || self.deadline.is_some_and(|d| Instant::now() >= d) {
-                self.cut.store(true, Ordering::Relaxed);
-                return stats;
+        let (cut, deadline) = (self.cut, self.deadline);
+        let stop = || {
+            let late = cut.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d);
+            if late {
+                cut.store(true, Ordering::Relaxed);
             }
-            for s in self.samples.clone() {
-                isa.add_sample(px, self.sampler.sample(col as u32, self.row, s, &mut stats));
-            }
-        }
+            late
+        };
+        self.sampler
+            .add_row_samples(self.row, self.pixels, self.samples, &mut stats, &stop);
         stats
     }
 }

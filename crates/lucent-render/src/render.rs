@@ -360,6 +360,67 @@ impl<'a> PixelSampler<'a> {
         }
     }
 
+    /// Adds samples `samples` of each pixel of row `row` to `pixels` (the
+    /// row's, from its first), pixel by pixel, each pixel's in sample
+    /// order. Where the path tracer walks packets ([`PixelSampler::camera_packets`])
+    /// the samples are traced sixteen at a time in that order
+    /// ([`PathTracer::trace_batch`]: a pixel's samples, or neighbouring
+    /// pixels'), else one at a time; the sums are the same bits either way.
+    /// `stop` is asked before each pixel (each batch); once it says so the
+    /// row is left unfinished and `false` returned.
+    #[inline(always)]
+    pub(crate) fn add_row_samples(
+        &self,
+        row: u32,
+        pixels: &mut [ExactRgb],
+        samples: Range<u32>,
+        stats: &mut RayStats,
+        stop: &dyn Fn() -> bool,
+    ) -> bool {
+        let isa = self.isa();
+        if let Some((path, tree)) = self.camera_packets() {
+            let per_pixel = samples.len();
+            let total = pixels.len() * per_pixel;
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
+            let mut rngs: [Pcg32; PACKET] = std::array::from_fn(|_| Pcg32::new(0, 0));
+            let mut cols = [0usize; PACKET];
+            let mut at = 0;
+            while at < total {
+                if stop() {
+                    return false;
+                }
+                let n = PACKET.min(total - at);
+                for l in 0..n {
+                    let (col, s) = ((at + l) / per_pixel, samples.start + ((at + l) % per_pixel) as u32);
+                    let key = self.pixel_key(col as u32, row);
+                    (rays[l], rngs[l]) = self.path_start_keyed(key, col as u32, row, s);
+                    cols[l] = col;
+                }
+                let active = (((1u32 << n) - 1) & 0xffff) as u16;
+                let mut radiance = [Vec3::ZERO; PACKET];
+                path.trace_batch(&tree, &rays, active, &mut rngs, stats, &mut radiance);
+                for l in 0..n {
+                    if let Some(px) = pixels.get_mut(cols[l]) {
+                        isa.add_sample(px, radiance[l]);
+                    }
+                }
+                at += n;
+            }
+            return true;
+        }
+        for (col, px) in pixels.iter_mut().enumerate() {
+            if stop() {
+                return false;
+            }
+            let col = col as u32;
+            let key = self.pixel_key(col, row);
+            for s in samples.clone() {
+                isa.add_sample(px, self.sample_keyed(key, col, row, s, stats));
+            }
+        }
+        true
+    }
+
     /// Radiance of sample `s` of pixel (`col`, `row`).
     #[inline(always)]
     pub(crate) fn sample(&self, col: u32, row: u32, s: u32, stats: &mut RayStats) -> Vec3 {
@@ -550,45 +611,8 @@ impl Kernel for Row<'_, '_> {
     #[inline(always)]
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
-        let isa = self.sampler.isa();
-        if let Some((path, tree)) = self.sampler.camera_packets() {
-            // The row's samples in order (pixel by pixel, each pixel's in
-            // sample order), sixteen at a time: their camera rays traced
-            // together, then each path on from its hit, added to its pixel
-            // in that same order.
-            let per_pixel = self.samples.len();
-            let total = self.pixels.len() * per_pixel;
-            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
-            let mut rngs: [Pcg32; PACKET] = std::array::from_fn(|_| Pcg32::new(0, 0));
-            let mut cols = [0usize; PACKET];
-            let mut at = 0;
-            while at < total {
-                let n = PACKET.min(total - at);
-                for l in 0..n {
-                    let (col, s) = ((at + l) / per_pixel, self.samples.start + ((at + l) % per_pixel) as u32);
-                    let key = self.sampler.pixel_key(col as u32, self.row);
-                    (rays[l], rngs[l]) = self.sampler.path_start_keyed(key, col as u32, self.row, s);
-                    cols[l] = col;
-                }
-                let active = (((1u32 << n) - 1) & 0xffff) as u16;
-                let mut radiance = [Vec3::ZERO; PACKET];
-                path.trace_batch(&tree, &rays, active, &mut rngs, &mut stats, &mut radiance);
-                for l in 0..n {
-                    if let Some(px) = self.pixels.get_mut(cols[l]) {
-                        isa.add_sample(px, radiance[l]);
-                    }
-                }
-                at += n;
-            }
-            return stats;
-        }
-        for (col, px) in self.pixels.iter_mut().enumerate() {
-            let (col, row) = (col as u32, self.row);
-            let key = self.sampler.pixel_key(col, row);
-            for s in self.samples.clone() {
-                isa.add_sample(px, self.sampler.sample_keyed(key, col, row, s, &mut stats));
-            }
-        }
+        self.sampler
+            .add_row_samples(self.row, self.pixels, self.samples, &mut stats, &|| false);
         stats
     }
 }
