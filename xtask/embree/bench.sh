@@ -4,6 +4,10 @@
 #   xtask/embree/bench.sh [ROUNDS] [OUT_DIR]     (defaults: 3, /tmp/lucent-vs-embree)
 #   env: PEER=/tmp/embree-peer  BASELINE=path/to/an/older/lucent-bench (optional;
 #        a 'lucent' from before lucent-bench: BASELINE_CMD="bench rays")
+#        PACKETS=1 also times Lucent's packet queries on the same rays
+#        (`lucent-bench rays --packets`: sixteen consecutive rays of the file
+#        at a time, i.e. sixteen neighbouring pixels of a camera's rays; the
+#        random rays go back to the single-ray walk), as "lucent_packets"
 #        MESHES="bun_zipper dragon"  SETS="close primary random"  REPS=5
 #        ASSETS=$ROOT/../shared/assets (the meshes; set it in a worktree elsewhere)
 #
@@ -49,15 +53,19 @@ print(json.dumps({"round": int(sys.argv[2]), "case": sys.argv[3], "who": "embree
   **{k + "_mrays_s": v["mrays_s"] for k, v in t.items()}}))
 PY
       for threads in 1 2; do
-        for who in lucent baseline; do
-          bin=$LUCENT cmd=rays
+        for who in lucent lucent_packets baseline; do
+          bin=$LUCENT cmd=rays extra=()
           if [[ $who == baseline ]]; then
             [[ -n ${BASELINE:-} ]] || continue
             bin=$BASELINE cmd=${BASELINE_CMD:-rays}
           fi
+          if [[ $who == lucent_packets ]]; then
+            [[ ${PACKETS:-0} == 1 ]] || continue
+            extra=(--packets)
+          fi
           # shellcheck disable=SC2086 # BASELINE_CMD may be two words
           line=$(lock "$bin" $cmd --mesh "$m" --rays "$rays" --occluded /dev/null \
-            --threads "$threads" --reps "$REPS" 2>/dev/null)
+            --threads "$threads" --reps "$REPS" "${extra[@]}" 2>/dev/null)
           echo "{$tag,\"who\":\"$who\",${line#\{}" >>"$RES"
         done
       done

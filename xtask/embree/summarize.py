@@ -30,6 +30,19 @@ for c in cases:
             lu = med(by[(c, "lucent", t)], lk)
             ba = med(by[(c, "baseline", t)], lk)
             print(f"| {c} | {q} | {t} | {em:.2f} | {lu:.2f} | {lu / em:.2f} | {ba:.2f} | {lu / ba:.2f} |")
+if any(r["who"] == "lucent_packets" for r in rows):
+    print()
+    print("Lucent's packet queries (`--packets`: sixteen consecutive rays of the file at a time) on the same rays:")
+    print("| case | query | threads | Embree | Lucent packets | ratio | Lucent packets / Lucent |")
+    print("|---|---|---|---|---|---|---|")
+    for c in cases:
+        e = by[(c, "embree", None)]
+        for q, lk, ek in (("closest", "mrays_s", "closest_T{}_mrays_s"), ("any hit", "occluded_mrays_s", "occluded_T{}_mrays_s")):
+            for t in (1, 2):
+                em = med(e, ek.format(t))
+                lp = med(by[(c, "lucent_packets", t)], lk)
+                lu = med(by[(c, "lucent", t)], lk)
+                print(f"| {c} | {q} | {t} | {em:.2f} | {lp:.2f} | {lp / em:.2f} | {lp / lu:.2f} |")
 print()
 print("| case | Embree build ms (2 CPUs) | Lucent build ms 1 thread | 2 threads | ratio (2 thr) | baseline ms | Lucent bytes/tri |")
 print("|---|---|---|---|---|---|---|")
