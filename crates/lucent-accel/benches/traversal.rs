@@ -4,6 +4,9 @@
 //! sphere, with frame-filling primary rays (the Embree peer's float32 camera
 //! recipe at 1.2 bounding radii) and random rays, on 1 and 2 threads.
 //!
+//! A pixel's sixteen samples (jittered within a pixel) are traced one at
+//! a time and sixteen at a time through the packet queries.
+//!
 //! Throughput is reported in rays (elements) per second. Run with
 //! `cargo bench -p lucent-accel --bench traversal`; for the comparison with
 //! Embree use `xtask/embree/bench.sh`, which traces the peer's own ray files.
@@ -11,7 +14,7 @@
 #![allow(missing_docs, reason = "criterion_group! generates undocumented public functions")]
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use lucent_accel::{BuildParams, BuildQuality, MeshBvh};
+use lucent_accel::{BuildParams, BuildQuality, MeshBvh, PACKET};
 use lucent_geom::Named;
 use lucent_geom::{Aabb, Pcg32, Ray, TriMesh, Vec3, shapes};
 use std::hint::black_box;
@@ -84,6 +87,45 @@ fn random_rays(bounds: Aabb, n: usize) -> Vec<Ray> {
         .collect()
 }
 
+/// A pixel's sixteen samples for every 4x4 block of a `primary_rays` set
+/// (1280 per row): sixteen rays per block, each aimed at a random point of
+/// the block's first pixel (between its ray and its neighbours'), as a
+/// path tracer traces a pixel's camera rays.
+fn pixel_samples(rays: &[Ray]) -> Vec<Ray> {
+    let (w, h) = (1280usize, rays.len() / 1280);
+    let mut rng = Pcg32::new(7, 7);
+    let mut out = Vec::with_capacity(rays.len());
+    for y in (0..h.saturating_sub(1)).step_by(4) {
+        for x in (0..w - 1).step_by(4) {
+            let (r, right, down) = (rays[y * w + x], rays[y * w + x + 1], rays[(y + 1) * w + x]);
+            for _ in 0..PACKET {
+                let (u, v) = (rng.next_f32(), rng.next_f32());
+                out.push(Ray::new(
+                    r.origin,
+                    r.dir + (right.dir - r.dir) * u + (down.dir - r.dir) * v,
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// Traces `rays` sixteen at a time through the packet queries on one
+/// thread; returns the number of hits.
+fn trace_packets(bvh: &MeshBvh, rays: &[Ray], occlusion: bool) -> usize {
+    rays.chunks_exact(PACKET)
+        .map(|chunk| {
+            let packet: [Ray; PACKET] = std::array::from_fn(|l| chunk[l]);
+            let t_max = [f32::INFINITY; PACKET];
+            if occlusion {
+                bvh.occluded_packet(&packet, &t_max, u16::MAX).count_ones() as usize
+            } else {
+                bvh.intersect_packet(&packet, &t_max, u16::MAX).iter().flatten().count()
+            }
+        })
+        .sum()
+}
+
 /// Traces `rays` on `threads` threads (each takes an equal slice); returns
 /// the number of hits so the work cannot be optimised away.
 fn trace(bvh: &MeshBvh, rays: &[Ray], threads: usize, occlusion: bool) -> usize {
@@ -143,6 +185,20 @@ fn bench(c: &mut Criterion) {
             }
             group.finish();
         }
+        // A pixel's samples, one ray at a time and sixteen at a time.
+        let samples = pixel_samples(&sets[0].1);
+        let mut group = c.benchmark_group(format!("trace/{name}/pixel_samples"));
+        group.sample_size(10);
+        group.throughput(Throughput::Elements(samples.len() as u64));
+        for (query, occlusion) in [("closest", false), ("any", true)] {
+            group.bench_function(BenchmarkId::new(query, "single"), |b| {
+                b.iter(|| trace(&bvh, black_box(&samples), 1, occlusion))
+            });
+            group.bench_function(BenchmarkId::new(query, "packets"), |b| {
+                b.iter(|| trace_packets(&bvh, black_box(&samples), occlusion))
+            });
+        }
+        group.finish();
     }
 }
 
