@@ -1,7 +1,7 @@
 //! One BVH over every instance's triangles in render space, for the path
 //! tracer.
 //!
-//! The two-level [`SceneBvh`](lucent_accel::SceneBvh) shares a mesh's tree
+//! The two-level [`SceneBvh`] shares a mesh's tree
 //! between its instances, at the price of a walk of the instance tree and a
 //! ray transform per instance entered; in a room whose walls, lights and
 //! objects are separate instances with overlapping boxes, that walk cost
