@@ -35,13 +35,19 @@
 //! 4. per lane: the shadow rays;
 //! 5. in lanes: the MIS-weighted light, the cosine-weighted direction (a
 //!    polynomial sine and cosine after a quarter-turn reduction, not the
-//!    library's), the throughput, the next ray and Russian roulette;
+//!    library's), the throughput, the next ray and Russian roulette. A
+//!    Lambertian lobe beside a rough GGX conductor or a smooth dielectric
+//!    ([`Mixture`]) is shaded in the same pass, and in a step with such a
+//!    mixture the plain Lambertian lanes join it (one pass of light samples
+//!    and shadow rays per step): the lobe choice, the cosine-weighted and
+//!    GGX candidates and the mixture's value and density;
 //! 6. in lanes, for the lanes at a smooth mirror or a smooth dielectric
-//!    ([`DeltaLobe`]): reflection, or Fresnel-weighted reflection and
-//!    refraction, the throughput, the next ray and Russian roulette; per
-//!    lane, for any other BSDF mixture, the scalar tracer's vertex from the
-//!    same lane numbers. A BSDF without lobes (an emitter's black one) ends
-//!    the path in lanes.
+//!    ([`DeltaLobe`]), and those whose mixture chose its dielectric:
+//!    reflection, or Fresnel-weighted reflection and refraction, the
+//!    throughput (over the lobe's probability), the next ray and Russian
+//!    roulette; per lane, for any other BSDF mixture, the scalar tracer's
+//!    vertex from the same lane numbers. A BSDF without lobes (an
+//!    emitter's black one) ends the path in lanes.
 //!
 //! It renders the scalar tracer's estimator, not its bits: each path's
 //! random numbers are drawn in a different order (seven per vertex), the
@@ -131,7 +137,8 @@ struct Tri {
     ng: [f32; 3],
     /// Largest absolute corner coordinate.
     magnitude: f32,
-    /// Lambertian albedo, mirror reflectance or dielectric tint.
+    /// Lambertian albedo, mirror reflectance or dielectric tint (the
+    /// Lambertian lobe's albedo where there is one).
     albedo: [f32; 3],
     /// Which lane code shades the BSDF: [`KIND_DIFFUSE`] and the others.
     kind: u32,
@@ -139,7 +146,8 @@ struct Tri {
     material: u32,
     /// Index of the emitter in the light set, or [`NONE`].
     emitter: u32,
-    /// A dielectric's index inside over outside.
+    /// A dielectric's index inside over outside (of the glass of a
+    /// [`KIND_GLASS`] or [`KIND_DIFFUSE_GLASS`] material).
     eta: f32,
     /// 1 when the material has a diffuse texture (its albedo is the
     /// untextured one, times the texture at the hit's coordinates).
@@ -159,16 +167,58 @@ const KIND_OTHER: u32 = 4;
 /// A Lambertian lobe beside a rough GGX conductor with Fresnel 1
 /// (`Bsdf::diffuse_and_rough_conductor`): the seed scene's floor.
 const KIND_GLOSSY: u32 = 5;
+/// A Lambertian lobe beside a smooth dielectric
+/// (`Bsdf::diffuse_and_dielectric`), untextured: the seed scene's sphere.
+const KIND_DIFFUSE_GLASS: u32 = 6;
 
-/// The conductor lobe of a [`KIND_GLOSSY`] material, and its selection.
-#[derive(Clone, Copy, Debug, Default)]
-struct Glossy {
+/// The lobes of a material beside its Lambertian one, as the mixture pass
+/// (`LaneTracer::shade_diffuse` with `G`) shades them: a [`KIND_GLOSSY`]
+/// material's conductor, a [`KIND_DIFFUSE_GLASS`] one's dielectric, a
+/// [`KIND_DIFFUSE`] one's none; and the selection.
+#[derive(Clone, Copy, Debug)]
+struct Mixture {
+    /// The conductor's weight (zero without one).
     conductor: [f32; 3],
+    /// Its GGX roughness (1 without one: any finite value keeps the lobe's
+    /// terms finite, and they are weighted by zero).
     alpha: f32,
     /// Cumulative selection probabilities after the diffuse lobe and after
-    /// the conductor.
+    /// the conductor; the dielectric takes the rest.
     c0: f32,
     c1: f32,
+    /// The dielectric's tint.
+    tint: [f32; 3],
+}
+
+impl Mixture {
+    /// The mixture of `bsdf`, or a Lambertian lobe alone.
+    fn of(bsdf: &Bsdf) -> Mixture {
+        let lambertian = Mixture {
+            conductor: [0.0; 3],
+            alpha: 1.0,
+            c0: 1.0,
+            c1: 1.0,
+            tint: [0.0; 3],
+        };
+        if let Some((_, conductor, alpha, c0, c1)) = bsdf.diffuse_and_rough_conductor() {
+            return Mixture {
+                conductor: conductor.to_array(),
+                alpha,
+                c0,
+                c1,
+                ..lambertian
+            };
+        }
+        if let Some((_, tint, _, c0)) = bsdf.diffuse_and_dielectric() {
+            return Mixture {
+                c0,
+                c1: c0,
+                tint: tint.to_array(),
+                ..lambertian
+            };
+        }
+        lambertian
+    }
 }
 
 /// Counts of the lane tracer's work, for the occupancy figures.
@@ -186,6 +236,8 @@ pub struct LaneCounts {
     pub scalar: u64,
     /// Lanes at a Lambertian-and-GGX vertex, shaded in lanes.
     pub glossy: u64,
+    /// Lanes at a Lambertian-and-dielectric vertex, shaded in lanes.
+    pub diffuse_glass: u64,
 }
 
 impl std::ops::Add for LaneCounts {
@@ -198,6 +250,7 @@ impl std::ops::Add for LaneCounts {
             delta: self.delta + o.delta,
             scalar: self.scalar + o.scalar,
             glossy: self.glossy + o.glossy,
+            diffuse_glass: self.diffuse_glass + o.diffuse_glass,
         }
     }
 }
@@ -218,8 +271,8 @@ pub(crate) struct LaneTracer<'a> {
     /// v1 u2 v2) where the material has a diffuse texture; empty where no
     /// material has one.
     uvs: Vec<[f32; 6]>,
-    /// Per material, its conductor lobe where it is [`KIND_GLOSSY`].
-    glossy: Vec<Glossy>,
+    /// Per material, its lobes beside the Lambertian one.
+    mixtures: Vec<Mixture>,
 }
 
 /// The state of the sixteen paths.
@@ -300,6 +353,8 @@ struct Hits {
     scalar: Lb,
     /// The vertex is a Lambertian-and-GGX one, shaded in lanes.
     glossy: Lb,
+    /// The vertex is a Lambertian-and-dielectric one, shaded in lanes.
+    diffuse_glass: Lb,
     /// The seven numbers of the vertex.
     rnd: [Lf; 7],
 }
@@ -327,6 +382,36 @@ struct BsdfLanes {
     alpha: Lf,
     c0: Lf,
     c1: Lf,
+}
+
+/// The lanes a step shades with a delta lobe (`LaneTracer::shade_delta`):
+/// the mirrors and glass, and the Lambertian-and-dielectric vertices whose
+/// lobe choice took the dielectric.
+struct DeltaLanes {
+    mine: Lb,
+    /// The lobe is a dielectric (else a mirror).
+    glass: Lb,
+    /// The number that chooses reflection or refraction.
+    u: Lf,
+    /// The probability that the lobe was chosen (1 for a BSDF that is the
+    /// lobe alone).
+    p: Lf,
+    /// The lobe's tint (a mirror's reflectance).
+    tint: L3,
+}
+
+impl DeltaLanes {
+    /// The lanes of `h` at a mirror or glass vertex.
+    #[inline(always)]
+    fn of(h: &Hits) -> DeltaLanes {
+        DeltaLanes {
+            mine: h.delta,
+            glass: h.glass,
+            u: h.rnd[U_LOBE],
+            p: [1.0; LANES],
+            tint: h.albedo,
+        }
+    }
 }
 
 /// The numbers of a vertex in `Hits::rnd`.
@@ -360,18 +445,7 @@ impl<'a> LaneTracer<'a> {
         }
         let flat = scene.flat_bvh()?;
         let bsdfs: Vec<Bsdf> = scene.materials.iter().map(|m| m.bsdf_at(None, None)).collect();
-        let glossy = bsdfs
-            .iter()
-            .map(|b| match b.diffuse_and_rough_conductor() {
-                Some((_, conductor, alpha, c0, c1)) => Glossy {
-                    conductor: conductor.to_array(),
-                    alpha,
-                    c0,
-                    c1,
-                },
-                None => Glossy::default(),
-            })
-            .collect();
+        let mixtures = bsdfs.iter().map(Mixture::of).collect();
         let any_texture = scene.materials.iter().any(|m| m.diffuse_map.is_some());
         let mut tris = Vec::with_capacity(flat.owners().len());
         let mut uvs = Vec::with_capacity(if any_texture { flat.owners().len() } else { 0 });
@@ -395,7 +469,7 @@ impl<'a> LaneTracer<'a> {
             lights: LaneLights::new(lights),
             bsdfs,
             uvs,
-            glossy,
+            mixtures,
         })
     }
 
@@ -435,17 +509,6 @@ impl<'a> LaneTracer<'a> {
         };
         let magnitude = corners.iter().map(|c| c.abs().max_element()).fold(0.0f32, f32::max);
         let bsdf = bsdfs.get(inst.material as usize)?;
-        let (kind, albedo, eta) = match (bsdf.lambertian_albedo(), bsdf.single_delta_lobe()) {
-            (Some(albedo), _) if ng != Vec3::ZERO => (KIND_DIFFUSE, albedo, 1.0),
-            (_, Some(DeltaLobe::Mirror(r))) if ng != Vec3::ZERO => (KIND_MIRROR, r, 1.0),
-            (_, Some(DeltaLobe::Dielectric(tint, eta))) if ng != Vec3::ZERO => (KIND_GLASS, tint, eta),
-            _ if ng != Vec3::ZERO && bsdf.diffuse_and_rough_conductor().is_some() => {
-                let (diffuse, ..) = bsdf.diffuse_and_rough_conductor()?;
-                (KIND_GLOSSY, diffuse, 1.0)
-            }
-            _ if bsdf.is_delta() && bsdf.albedo() == Vec3::ZERO => (KIND_BLACK, Vec3::ZERO, 1.0),
-            _ => (KIND_OTHER, Vec3::ZERO, 1.0),
-        };
         // Textured where the scalar tracer reads the texture: the material
         // has one and the instance's mesh gives coordinates.
         let textured = scene
@@ -454,6 +517,23 @@ impl<'a> LaneTracer<'a> {
             .is_some_and(|m| m.diffuse_map.is_some())
             && inst.reads.uvs
             && mesh.uvs().is_some();
+        let (kind, albedo, eta) = match (bsdf.lambertian_albedo(), bsdf.single_delta_lobe()) {
+            (Some(albedo), _) if ng != Vec3::ZERO => (KIND_DIFFUSE, albedo, 1.0),
+            (_, Some(DeltaLobe::Mirror(r))) if ng != Vec3::ZERO => (KIND_MIRROR, r, 1.0),
+            (_, Some(DeltaLobe::Dielectric(tint, eta))) if ng != Vec3::ZERO => (KIND_GLASS, tint, eta),
+            _ if ng != Vec3::ZERO && bsdf.diffuse_and_rough_conductor().is_some() => {
+                let (diffuse, ..) = bsdf.diffuse_and_rough_conductor()?;
+                (KIND_GLOSSY, diffuse, 1.0)
+            }
+            // A texture changes the lobes' selection with the diffuse
+            // weight: that mixture stays the scalar vertex's.
+            _ if ng != Vec3::ZERO && !textured && bsdf.diffuse_and_dielectric().is_some() => {
+                let (diffuse, _, eta, _) = bsdf.diffuse_and_dielectric()?;
+                (KIND_DIFFUSE_GLASS, diffuse, eta)
+            }
+            _ if bsdf.is_delta() && bsdf.albedo() == Vec3::ZERO => (KIND_BLACK, Vec3::ZERO, 1.0),
+            _ => (KIND_OTHER, Vec3::ZERO, 1.0),
+        };
         let emitter = scene
             .light_set
             .emitter(instance, prim)
@@ -520,6 +600,7 @@ impl<'a> LaneTracer<'a> {
             eta: Z,
             scalar: [false; LANES],
             glossy: [false; LANES],
+            diffuse_glass: [false; LANES],
             rnd: [Z; 7],
         };
         let n = out.len().min(NONE as usize);
@@ -616,8 +697,10 @@ impl<'a> LaneTracer<'a> {
             let mut n_delta = 0;
             let mut n_scalar = 0;
             let mut n_glossy = 0;
+            let mut n_diffuse_glass = 0;
             for i in 0..LANES {
                 n_glossy += u64::from(h.glossy[i]);
+                n_diffuse_glass += u64::from(h.diffuse_glass[i]);
                 n_diffuse += u64::from(h.diffuse[i]);
                 n_delta += u64::from(h.delta[i]);
                 n_scalar += u64::from(h.scalar[i]);
@@ -626,17 +709,24 @@ impl<'a> LaneTracer<'a> {
             counts.delta += n_delta;
             counts.scalar += n_scalar;
             counts.glossy += n_glossy;
-            // 3 to 5. The Lambertian lanes.
+            counts.diffuse_glass += n_diffuse_glass;
+            // 3 to 5. The Lambertian lanes and the mixtures with a
+            // Lambertian lobe: in a step with a mixture, all of them in its
+            // pass (one pass of light samples and shadow rays).
             let mut go_on = [false; LANES];
-            if n_diffuse > 0 {
-                self.shade_diffuse::<false>(&mut paths, &h, &mut go_on, stats);
+            let mut dl = DeltaLanes::of(&h);
+            if n_glossy + n_diffuse_glass > 0 {
+                let mut mine = [false; LANES];
+                for i in 0..LANES {
+                    mine[i] = h.diffuse[i] || h.glossy[i] || h.diffuse_glass[i];
+                }
+                self.shade_diffuse::<true>(&mut paths, &h, &mine, &mut dl, &mut go_on, stats);
+            } else if n_diffuse > 0 {
+                self.shade_diffuse::<false>(&mut paths, &h, &h.diffuse, &mut dl, &mut go_on, stats);
             }
-            if n_glossy > 0 {
-                self.shade_diffuse::<true>(&mut paths, &h, &mut go_on, stats);
-            }
-            // Mirrors and glass.
-            if n_delta > 0 {
-                self.shade_delta(&mut paths, &h, &mut go_on, stats);
+            // Mirrors and glass, and the mixtures' dielectric lobes.
+            if lane_mask(&dl.mine) != 0 {
+                self.shade_delta(&mut paths, &h, &dl, &mut go_on, stats);
             }
             // 6. Every other BSDF, one lane at a time.
             if n_scalar > 0 {
@@ -759,6 +849,7 @@ impl<'a> LaneTracer<'a> {
             h.eta[i] = t.eta;
             h.scalar[i] = goes_on && t.kind == KIND_OTHER;
             h.glossy[i] = goes_on && t.kind == KIND_GLOSSY;
+            h.diffuse_glass[i] = goes_on && t.kind == KIND_DIFFUSE_GLASS;
         }
         if !self.uvs.is_empty() {
             self.textures(h);
@@ -824,11 +915,21 @@ impl<'a> LaneTracer<'a> {
         }
     }
 
-    /// Steps 3 to 5 for the lanes `h.diffuse`; sets `go_on` for the paths
-    /// that continue.
+    /// Steps 3 to 5 for the lanes `mine`: plain Lambertian ones, or with
+    /// `G` any with a Lambertian lobe (alone, beside a GGX conductor or
+    /// beside a dielectric: [`Mixture`]); sets `go_on` for the paths that
+    /// continue, and adds to `dl` the lanes whose lobe choice took a
+    /// dielectric.
     #[inline(always)]
-    fn shade_diffuse<const G: bool>(&self, paths: &mut Paths, h: &Hits, go_on: &mut Lb, stats: &mut RayStats) {
-        let mine = if G { &h.glossy } else { &h.diffuse };
+    fn shade_diffuse<const G: bool>(
+        &self,
+        paths: &mut Paths,
+        h: &Hits,
+        mine: &Lb,
+        dl: &mut DeltaLanes,
+        go_on: &mut Lb,
+        stats: &mut RayStats,
+    ) {
         // The frame (`Frame::from_normal`), `wo` in it, the light sample,
         // the BSDF towards it and the shadow ray's ends.
         let mut t = Z3;
@@ -844,15 +945,17 @@ impl<'a> LaneTracer<'a> {
             c0: Z,
             c1: Z,
         };
+        let mut tint = Z3;
         if G {
-            let glossy = &self.glossy[..];
+            let mixtures = &self.mixtures[..];
             let tris = &self.tris[..];
-            if let (Some(g_last), Some(t_last)) = (glossy.len().checked_sub(1), tris.len().checked_sub(1)) {
+            if let (Some(g_last), Some(t_last)) = (mixtures.len().checked_sub(1), tris.len().checked_sub(1)) {
                 for i in 0..LANES {
                     let m = tris[(h.tri[i] as usize).min(t_last)].material;
-                    let g = &glossy[(m as usize).min(g_last)];
+                    let g = &mixtures[(m as usize).min(g_last)];
                     for c in 0..3 {
                         bl.conductor[c][i] = g.conductor[c];
+                        tint[c][i] = g.tint[c];
                     }
                     bl.alpha[i] = g.alpha;
                     bl.c0[i] = g.c0;
@@ -937,6 +1040,7 @@ impl<'a> LaneTracer<'a> {
         let mut gp = Z;
         let mut gok = [false; LANES];
         let mut gw = Z3;
+        let mut took_glass = [false; LANES];
         if G {
             let mut pick = [false; LANES];
             for i in 0..LANES {
@@ -957,6 +1061,24 @@ impl<'a> LaneTracer<'a> {
                     gd[c][i] = sv[c] * inv;
                 }
                 pick[i] = live[i] && (diffuse || (conductor && g_ok)) && s2 > 0.0 && s2 <= f32::MAX && gd[2][i] != 0.0;
+            }
+            // The dielectric (probability `1 - c1`), chosen with what is
+            // left of `u_lobe` (`Bsdf::sample_general`), for the mirror and
+            // glass pass. (A loop of its own: in the one above, these
+            // selects kept the compiler from vectorising it.)
+            for i in 0..LANES {
+                let u_lobe = h.rnd[U_LOBE][i];
+                let glass = live[i] && h.diffuse_glass[i] && u_lobe >= bl.c0[i] && u_lobe >= bl.c1[i];
+                let p_glass = 1.0 - bl.c1[i];
+                let u_rest = ((u_lobe - (1.0 - p_glass)) / p_glass).clamp(0.0, 1.0 - f32::EPSILON);
+                dl.mine[i] |= glass;
+                dl.glass[i] |= glass;
+                dl.u[i] = if glass { u_rest } else { dl.u[i] };
+                dl.p[i] = if glass { p_glass } else { dl.p[i] };
+                for c in 0..3 {
+                    dl.tint[c][i] = if glass { tint[c][i] } else { dl.tint[c][i] };
+                }
+                took_glass[i] = glass;
             }
             for i in 0..LANES {
                 let albedo = [h.albedo[0][i], h.albedo[1][i], h.albedo[2][i]];
@@ -1023,7 +1145,7 @@ impl<'a> LaneTracer<'a> {
         }
         let mut bounces = 0;
         for i in 0..LANES {
-            bounces += u64::from(live[i]);
+            bounces += u64::from(live[i] && !took_glass[i]);
         }
         stats.reflection += bounces;
     }
@@ -1264,13 +1386,14 @@ impl<'a> LaneTracer<'a> {
         }
     }
 
-    /// The lanes `h.delta`: a mirror reflects; glass reflects with the
+    /// The lanes `dl.mine`: a mirror reflects; glass reflects with the
     /// Fresnel probability and refracts otherwise (`Bsdf`'s dielectric
-    /// sample, in world space about the shading normal); then the
+    /// sample, in world space about the shading normal), its weight and
+    /// probability those of the lobe's choice besides (`dl.p`); then the
     /// throughput, the next ray and Russian roulette as for a Lambertian
     /// vertex. Sets `go_on` for those lanes.
     #[inline(always)]
-    fn shade_delta(&self, paths: &mut Paths, h: &Hits, go_on: &mut Lb, stats: &mut RayStats) {
+    fn shade_delta(&self, paths: &mut Paths, h: &Hits, dl: &DeltaLanes, go_on: &mut Lb, stats: &mut RayStats) {
         let mut refracted = 0u64;
         let mut reflected = 0u64;
         for i in 0..LANES {
@@ -1282,8 +1405,8 @@ impl<'a> LaneTracer<'a> {
             let eta = h.eta[i];
             let eta_ti = if outside { eta } else { 1.0 / eta };
             let r = fresnel_dielectric(cos_o, eta_ti);
-            let glass = h.glass[i];
-            let reflect = !glass || h.rnd[U_LOBE][i] < r;
+            let glass = dl.glass[i];
+            let reflect = !glass || dl.u[i] < r;
             // Refraction (`optics::refract` of `-wo` about the normal on
             // `wo`'s side, by `1 / eta_ti`).
             let e = 1.0 / eta_ti;
@@ -1308,11 +1431,11 @@ impl<'a> LaneTracer<'a> {
             // A refracted direction crosses the surface, a reflected one
             // stays on `wo`'s side; total internal reflection has `r = 1`.
             let crossed = cos_n * cos_o < 0.0;
-            let ok = h.delta[i] && cos_o != 0.0 && l2 > 0.0 && l2 <= f32::MAX && (reflect || (sin2_t < 1.0 && crossed));
+            let ok = dl.mine[i] && cos_o != 0.0 && l2 > 0.0 && l2 <= f32::MAX && (reflect || (sin2_t < 1.0 && crossed));
             let scale = if reflect { 1.0 } else { 1.0 / (eta_ti * eta_ti) };
             let mut m = 0.0f32;
             for c in 0..3 {
-                let tc = paths.thr[c][i] * (h.albedo[c][i] * scale);
+                let tc = paths.thr[c][i] * (dl.tint[c][i] * scale / dl.p[i]);
                 paths.thr[c][i] = if ok { tc } else { paths.thr[c][i] };
                 m = m.max(tc);
                 wi[c] *= inv;
@@ -1336,7 +1459,7 @@ impl<'a> LaneTracer<'a> {
             let roulette = depth >= self.rr_depth;
             let lives = !roulette || h.rnd[U_RR][i] < survive;
             paths.prev_pdf[i] = if ok {
-                if reflect { r } else { 1.0 - r }
+                dl.p[i] * if reflect { r } else { 1.0 - r }
             } else {
                 paths.prev_pdf[i]
             };
@@ -1346,7 +1469,7 @@ impl<'a> LaneTracer<'a> {
             for c in 0..3 {
                 paths.thr[c][i] /= scale;
             }
-            go_on[i] = if h.delta[i] { ok && m > 0.0 && lives } else { go_on[i] };
+            go_on[i] = if dl.mine[i] { ok && m > 0.0 && lives } else { go_on[i] };
             refracted += u64::from(ok && !reflect);
             reflected += u64::from(ok && reflect);
         }
@@ -1513,11 +1636,12 @@ fn ggx_eval_pdf(wo: [f32; 3], wi: [f32; 3], alpha: f32) -> (f32, f32) {
 /// (the azimuth) and `u1`, roughness `alpha`: `lucent_shading`'s
 /// `ggx_sample` (Dupuy and Benyoub's spherical cap) without branches, with
 /// the polynomial sine and cosine; the direction (not unit) and whether it
-/// is above the surface on `wo`'s side.
+/// is above the surface on `wo`'s side. A `wo` below the surface is
+/// mirrored through it and the sample mirrored back, as there.
 #[inline(always)]
 fn ggx_sample(wo: [f32; 3], u0: f32, u1: f32, alpha: f32) -> ([f32; 3], bool) {
     let s = if wo[2] < 0.0 { -1.0 } else { 1.0 };
-    let o = [wo[0] * s, wo[1] * s, wo[2] * s];
+    let o = [wo[0], wo[1], wo[2] * s];
     let unit = |v: [f32; 3]| {
         let l2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
         let r = if l2 > 0.0 && l2 <= f32::MAX {
@@ -1536,7 +1660,7 @@ fn ggx_sample(wo: [f32; 3], u0: f32, u1: f32, alpha: f32) -> ([f32; 3], bool) {
     let k = 2.0 * (o[0] * h[0] + o[1] * h[1] + o[2] * h[2]);
     let wi = [k * h[0] - o[0], k * h[1] - o[1], k * h[2] - o[2]];
     let ok = h[2] > 0.0 && wi[2] > 0.0;
-    ([wi[0] * s, wi[1] * s, wi[2] * s], ok)
+    ([wi[0], wi[1], wi[2] * s], ok)
 }
 
 /// `lucent_shading::optics::fresnel_dielectric` without branches, for
@@ -2004,6 +2128,220 @@ mod tests {
                 checked += 1;
             }
             assert!(checked > 10_000);
+        }
+    }
+
+    /// The lanes' value and density of a Lambertian-and-dielectric mixture
+    /// (its Lambertian lobe, picked with probability `c0`) are
+    /// `Bsdf::eval_pdf`'s, and the library's other mixtures are not taken
+    /// for it.
+    #[test]
+    fn the_lane_diffuse_and_dielectric_mixture_is_the_bsdfs() {
+        let sphere = SceneMaterial {
+            kd: Vec3::splat(0.4),
+            kt: Vec3::splat(0.6),
+            ior: 1.05,
+            ..SceneMaterial::default()
+        };
+        for other in [
+            Bsdf::lambertian(Vec3::ONE),
+            Bsdf::dielectric(1.5),
+            SceneMaterial {
+                kr: Vec3::splat(0.2),
+                ..sphere.clone()
+            }
+            .bsdf_at(None, None),
+            SceneMaterial {
+                ks: Vec3::splat(0.2),
+                ..sphere.clone()
+            }
+            .bsdf_at(None, None),
+            Bsdf::metallic_roughness(Vec3::ONE, 0.0, 0.5, 0.5, 1.5),
+        ] {
+            assert!(other.diffuse_and_dielectric().is_none(), "{other:?}");
+        }
+        let mut rng = Pcg32::new(5, 3);
+        for (kd, kt, ior) in [(0.4, 0.6, 1.05), (0.7, 0.1, 1.5), (0.05, 0.9, 0.7)] {
+            let bsdf = SceneMaterial {
+                kd: Vec3::new(kd, kd * 0.5, kd * 0.8),
+                kt: Vec3::splat(kt),
+                ior,
+                ..sphere.clone()
+            }
+            .bsdf_at(None, None);
+            let Some((diffuse, tint, eta, c0)) = bsdf.diffuse_and_dielectric() else {
+                panic!("a diffuse and dielectric mixture");
+            };
+            assert_eq!((tint, eta), (Vec3::splat(kt), ior));
+            let m = Mixture::of(&bsdf);
+            let mut bl = BsdfLanes {
+                t: Z3,
+                b: Z3,
+                wo: Z3,
+                conductor: Z3,
+                alpha: [m.alpha; LANES],
+                c0: [m.c0; LANES],
+                c1: [m.c1; LANES],
+            };
+            assert_eq!((m.c0, m.c1, m.conductor, m.tint), (c0, c0, [0.0; 3], tint.to_array()));
+            let mut checked = 0;
+            for _ in 0..20_000 {
+                let mut dir = || LocalDir::new(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5);
+                let (Some(wo), Some(wi)) = (dir(), dir()) else {
+                    continue;
+                };
+                for c in 0..3 {
+                    bl.wo[c][0] = wo.get()[c];
+                }
+                let (f, p) = LaneTracer::eval_local(&bl, diffuse.to_array(), 0, wi.get().to_array());
+                let (f_ref, p_ref) = bsdf.eval_pdf(wo, wi);
+                let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
+                assert!(close(p, p_ref), "pdf {p} against {p_ref}");
+                for c in 0..3 {
+                    assert!(close(f[c], f_ref[c]), "f {f:?} against {f_ref}");
+                }
+                checked += 1;
+            }
+            assert!(checked > 10_000);
+        }
+    }
+
+    /// The mixture pass (with the delta pass for a dielectric the lobe
+    /// choice took) samples what `Bsdf::sample_local` samples: at the
+    /// Lambertian, Lambertian-and-GGX and Lambertian-and-dielectric
+    /// vertices of [`sun_sky_texture_and_mixtures`], from random normals,
+    /// directions and numbers, the lanes' next direction, weight, density
+    /// and delta flag are the BSDF sample's, and a lane goes on exactly
+    /// where the BSDF gives a sample of some weight.
+    #[test]
+    fn the_mixture_pass_samples_what_the_bsdf_samples() {
+        let rs = extract(&sun_sky_texture_and_mixtures()).unwrap_or_else(|e| panic!("{e}"));
+        let Some(lt) = LaneTracer::new(&rs, &settings(1)) else {
+            panic!("the lane tracer takes this scene");
+        };
+        let mut rng = Pcg32::new(17, 4);
+        let unit = |rng: &mut Pcg32| loop {
+            let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE;
+            let l = v.length();
+            if l > 0.1 && l < 1.0 {
+                break v / l;
+            }
+        };
+        for kind in [KIND_DIFFUSE, KIND_GLOSSY, KIND_DIFFUSE_GLASS] {
+            let Some(k) = lt.tris.iter().position(|t| t.kind == kind) else {
+                panic!("no triangle of kind {kind}");
+            };
+            let t = lt.tris[k];
+            // The material's BSDF without its texture, as `h.albedo` below.
+            let bsdf = lt.bsdfs[t.material as usize];
+            let (mut sampled, mut none, mut delta) = (0, 0, 0);
+            for _ in 0..1_000 {
+                let mut paths = Paths {
+                    id: [0; LANES],
+                    state: [0; LANES],
+                    inc: [0; LANES],
+                    o: Z3,
+                    d: Z3,
+                    thr: [[1.0; LANES]; 3],
+                    rad: Z3,
+                    prev_p: Z3,
+                    prev_pdf: Z,
+                    prev_delta: [false; LANES],
+                    eta_scale: [1.0; LANES],
+                    depth: [0; LANES],
+                    narrow: [false; LANES],
+                };
+                let mut h = Hits {
+                    tri: [k as u32; LANES],
+                    u: Z,
+                    v: Z,
+                    p: Z3,
+                    ng: Z3,
+                    ns: Z3,
+                    magnitude: [t.magnitude; LANES],
+                    albedo: Z3,
+                    diffuse: [kind == KIND_DIFFUSE; LANES],
+                    delta: [false; LANES],
+                    glass: [false; LANES],
+                    uv: [Z; 2],
+                    eta: [t.eta; LANES],
+                    scalar: [false; LANES],
+                    glossy: [kind == KIND_GLOSSY; LANES],
+                    diffuse_glass: [kind == KIND_DIFFUSE_GLASS; LANES],
+                    rnd: [Z; 7],
+                };
+                for i in 0..LANES {
+                    let (n, d) = (unit(&mut rng), unit(&mut rng));
+                    for c in 0..3 {
+                        h.p[c][i] = t.p0[c];
+                        h.ng[c][i] = n[c];
+                        h.ns[c][i] = n[c];
+                        h.albedo[c][i] = t.albedo[c];
+                        paths.d[c][i] = d[c];
+                    }
+                    for r in &mut h.rnd {
+                        r[i] = rng.next_f32();
+                    }
+                }
+                let d_in = paths.d;
+                let mine = [true; LANES];
+                let mut dl = DeltaLanes::of(&h);
+                let mut go_on = [false; LANES];
+                let mut stats = RayStats::default();
+                lt.shade_diffuse::<true>(&mut paths, &h, &mine, &mut dl, &mut go_on, &mut stats);
+                if lane_mask(&dl.mine) != 0 {
+                    lt.shade_delta(&mut paths, &h, &dl, &mut go_on, &mut stats);
+                }
+                for i in 0..LANES {
+                    let get = |a: &L3| Vec3::new(a[0][i], a[1][i], a[2][i]);
+                    let frame = Frame::from_normal(get(&h.ns));
+                    let u = Vec2::new(h.rnd[U_BSDF][i], h.rnd[U_BSDF + 1][i]);
+                    let want = LocalDir::new(frame.to_local(-get(&d_in)))
+                        .and_then(|wo| bsdf.sample_local(wo, h.rnd[U_LOBE][i], u))
+                        .filter(|bs| bs.weight.max_element() > 0.0);
+                    let Some(bs) = want else {
+                        assert!(
+                            !go_on[i],
+                            "kind {kind}: the lane goes on where the BSDF gives no sample"
+                        );
+                        none += 1;
+                        continue;
+                    };
+                    assert!(go_on[i], "kind {kind}: the lane stops where the BSDF samples {bs:?}");
+                    sampled += 1;
+                    delta += usize::from(bs.delta);
+                    let close = |a: f32, b: f32, tol: f32| (a - b).abs() <= tol * b.abs().max(1.0);
+                    let wi = frame.to_world(bs.wi);
+                    for c in 0..3 {
+                        assert!(
+                            close(paths.d[c][i], wi[c], 2e-5),
+                            "kind {kind}: wi {} against {wi}",
+                            get(&paths.d)
+                        );
+                        assert!(
+                            close(paths.thr[c][i], bs.weight[c], 1e-4),
+                            "weight {} against {}",
+                            get(&paths.thr),
+                            bs.weight
+                        );
+                    }
+                    assert_eq!(paths.prev_delta[i], bs.delta);
+                    assert!(
+                        close(paths.prev_pdf[i], bs.pdf, 1e-4),
+                        "pdf {} against {}",
+                        paths.prev_pdf[i],
+                        bs.pdf
+                    );
+                }
+            }
+            // GGX samples below the surface give none.
+            assert!(sampled > 10_000, "kind {kind}: {sampled} sampled");
+            assert_eq!(none > 100, kind == KIND_GLOSSY, "kind {kind}: {none} without a sample");
+            assert_eq!(
+                delta > 1_000,
+                kind == KIND_DIFFUSE_GLASS,
+                "kind {kind}: {delta} delta samples"
+            );
         }
     }
 
