@@ -59,6 +59,9 @@ pub(crate) struct ConstantEnv {
     pub cos: [f32; 2],
     /// Map frame to world.
     pub world_from_map: Mat3,
+    /// The density of every direction (what [`EnvLight::pdf`] gives for
+    /// any direction but a NaN one).
+    pub pdf: f32,
 }
 
 /// The scene's environment, ready to be looked up and sampled.
@@ -320,7 +323,7 @@ impl EnvLight {
     /// The numbers of a constant environment, for sampling in lanes; `None`
     /// for a map of more than one texel.
     pub(crate) fn constant(&self) -> Option<ConstantEnv> {
-        let (Some(radiance), Some(&cos)) = (self.constant, self.row_cos.first()) else {
+        let (Some(radiance), Some(pdf), Some(&cos)) = (self.constant, self.uniform_pdf, self.row_cos.first()) else {
             return None;
         };
         Some(ConstantEnv {
@@ -329,6 +332,7 @@ impl EnvLight {
             inv_total: self.inv_total,
             cos,
             world_from_map: self.world_from_map,
+            pdf,
         })
     }
 

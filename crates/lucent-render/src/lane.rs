@@ -11,8 +11,9 @@
 //!    scalar tracer starts them) and trace its ray through the flat tree
 //!    (one ray at a time, the traversal kernel of `lucent-accel`); a ray
 //!    that leaves the scene ends its path there with the environment's
-//!    light (weighted as the scalar tracer weighs it) and the lane takes
-//!    the pool's next path at once;
+//!    light (weighted as the scalar tracer weighs it; in lanes for a
+//!    constant environment) and the lane takes the pool's next path at
+//!    once;
 //! 2. in lanes: the hit's triangle fetched by index (gathers; its record
 //!    was prefetched when the lane's query returned) from a table
 //!    built once per render, one 128-byte record per triangle in render
@@ -276,6 +277,7 @@ pub(crate) struct LaneTracer<'a> {
 }
 
 /// The state of the sixteen paths.
+#[derive(Clone)]
 struct Paths {
     /// The pool's index of the lane's path, or [`NONE`].
     id: Lu,
@@ -614,6 +616,9 @@ impl<'a> LaneTracer<'a> {
             len: 0,
             at: 0,
         };
+        // A constant environment: paths that leave the scene find it in
+        // lanes (anything else, one at a time).
+        let sky = self.lights.constant_sky();
         loop {
             // 1. Trace, then refill. The rays of the lanes' paths: the
             // narrow ones' as a packet, the others one at a time. A path
@@ -638,6 +643,7 @@ impl<'a> LaneTracer<'a> {
             let bvh = self.flat.mesh_bvh();
             let narrow = held & lane_mask(&paths.narrow);
             let mut hits = bvh.intersect_packet(&rays, &[f32::INFINITY; LANES], narrow);
+            let mut left = [false; LANES];
             for i in 0..LANES {
                 if held & (1 << i) == 0 {
                     continue;
@@ -647,8 +653,14 @@ impl<'a> LaneTracer<'a> {
                 }
                 match hits[i] {
                     Some(hit) => self.take_hit(&mut h, i, hit),
+                    None if sky.is_some() => left[i] = true,
                     None => self.escape(&mut paths, i, rays[i].dir, out),
                 }
+            }
+            if let Some(sky) = sky
+                && lane_mask(&left) != 0
+            {
+                Self::escape_lanes(sky, &mut paths, &left, out);
             }
             for i in 0..LANES {
                 while paths.id[i] == NONE {
@@ -677,9 +689,17 @@ impl<'a> LaneTracer<'a> {
                     paths.depth[i] = 0;
                     paths.narrow[i] = true;
                     stats.primary += 1;
-                    match camera.hit[at] {
-                        Some(hit) => self.take_hit(&mut h, i, hit),
-                        None => self.escape(&mut paths, i, ray.dir, out),
+                    match (camera.hit[at], sky) {
+                        (Some(hit), _) => self.take_hit(&mut h, i, hit),
+                        // A camera ray (throughput 1, no radiance, weight
+                        // 1) finds the sky's radiance.
+                        (None, Some((radiance, _))) => {
+                            if let Some(slot) = out.get_mut(paths.id[i] as usize) {
+                                *slot = Vec3::from(radiance);
+                            }
+                            paths.id[i] = NONE;
+                        }
+                        (None, None) => self.escape(&mut paths, i, ray.dir, out),
                     }
                 }
             }
@@ -760,6 +780,35 @@ impl<'a> LaneTracer<'a> {
         }
         h.u[i] = hit.u;
         h.v[i] = hit.v;
+    }
+
+    /// The lanes `left`, whose paths left the scene along their rays, under
+    /// a constant environment of radiance `sky.0` whose light samples take
+    /// every direction with density `sky.1`: they add its light as
+    /// [`Self::escape`] does, in lanes, hand their radiance over and leave
+    /// their lanes empty.
+    #[inline(always)]
+    fn escape_lanes(sky: ([f32; 3], f32), paths: &mut Paths, left: &Lb, out: &mut [Vec3]) {
+        let (radiance, pdf) = sky;
+        for i in 0..LANES {
+            let w = if paths.prev_delta[i] {
+                1.0
+            } else {
+                power_heuristic(paths.prev_pdf[i], pdf)
+            };
+            for c in 0..3 {
+                let add = paths.thr[c][i] * radiance[c] * w;
+                paths.rad[c][i] += if left[i] { add } else { 0.0 };
+            }
+        }
+        for i in 0..LANES {
+            if left[i] {
+                if let Some(slot) = out.get_mut(paths.id[i] as usize) {
+                    *slot = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
+                }
+                paths.id[i] = NONE;
+            }
+        }
     }
 
     /// Lane `i`'s path left the scene along `dir`: it adds the
@@ -2342,6 +2391,87 @@ mod tests {
                 kind == KIND_DIFFUSE_GLASS,
                 "kind {kind}: {delta} delta samples"
             );
+        }
+    }
+
+    /// Paths that leave the scene gather a constant environment in lanes
+    /// as one at a time (`LaneTracer::escape`), from random throughputs,
+    /// densities and directions; a map, or no environment, leaves them to
+    /// `escape`.
+    #[test]
+    fn paths_leave_the_scene_in_lanes_as_one_at_a_time() {
+        let settings = settings(1);
+        for scene in [lamps_and_a_map(), box_with_glass_and_mirror()] {
+            let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+            let lt = LaneTracer::new(&rs, &settings);
+            assert!(lt.is_some_and(|lt| lt.lights.constant_sky().is_none()));
+        }
+        let mut dimmer = sun_sky_texture_and_mixtures();
+        dimmer.environment.intensity = 0.3;
+        for scene in [sun_sky_texture_and_mixtures(), dimmer] {
+            let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+            let Some(lt) = LaneTracer::new(&rs, &settings) else {
+                panic!("the lane tracer takes this scene");
+            };
+            let Some(sky) = lt.lights.constant_sky() else {
+                panic!("a constant sky");
+            };
+            let mut rng = Pcg32::new(23, 1);
+            let mut seen = 0.0;
+            for round in 0..500 {
+                let mut paths = Paths {
+                    id: [NONE; LANES],
+                    state: [0; LANES],
+                    inc: [0; LANES],
+                    o: Z3,
+                    d: Z3,
+                    thr: Z3,
+                    rad: Z3,
+                    prev_p: Z3,
+                    prev_pdf: Z,
+                    prev_delta: [false; LANES],
+                    eta_scale: [1.0; LANES],
+                    depth: [0; LANES],
+                    narrow: [false; LANES],
+                };
+                let mut left = [false; LANES];
+                for i in 0..LANES {
+                    paths.id[i] = (round * LANES + i) as u32;
+                    let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE;
+                    let d = d.normalize_or(Vec3::Y);
+                    for c in 0..3 {
+                        paths.d[c][i] = d[c];
+                        paths.thr[c][i] = rng.next_f32() * 2.0;
+                        paths.rad[c][i] = rng.next_f32();
+                    }
+                    paths.prev_pdf[i] = rng.next_f32() * 4.0;
+                    paths.prev_delta[i] = rng.next_u32().is_multiple_of(4);
+                    left[i] = !rng.next_u32().is_multiple_of(3);
+                }
+                let mut alone = paths.clone();
+                let rad = paths.rad;
+                let mut out = vec![Vec3::NAN; 500 * LANES];
+                let mut want = vec![Vec3::NAN; 500 * LANES];
+                LaneTracer::escape_lanes(sky, &mut paths, &left, &mut out);
+                for i in 0..LANES {
+                    if left[i] {
+                        let dir = Vec3::new(alone.d[0][i], alone.d[1][i], alone.d[2][i]);
+                        lt.escape(&mut alone, i, dir, &mut want);
+                    }
+                }
+                assert_eq!(paths.id, alone.id);
+                for i in 0..LANES {
+                    let k = round * LANES + i;
+                    if !left[i] {
+                        assert!(out[k].is_nan() && paths.id[i] == k as u32);
+                        continue;
+                    }
+                    let close = (out[k] - want[k]).abs().max_element() <= 1e-6 * want[k].abs().max_element().max(1.0);
+                    assert!(close, "{} against {}", out[k], want[k]);
+                    seen += (want[k] - Vec3::new(rad[0][i], rad[1][i], rad[2][i])).max_element();
+                }
+            }
+            assert!(seen > 1.0, "{seen}");
         }
     }
 

@@ -226,6 +226,19 @@ impl<'a> LaneLights<'a> {
         }
     }
 
+    /// A constant environment's radiance (`EnvLight::eval`) and the
+    /// density with which the light samples pick each direction of it
+    /// (`LightSet::pdf_environment`, the same in every direction); `None`
+    /// for an environment map or none.
+    pub(super) fn constant_sky(&self) -> Option<([f32; 3], f32)> {
+        let Env::Constant(env) = self.env else {
+            return None;
+        };
+        let k = (self.n_emit + self.n_delta) as usize;
+        let p = self.prob.get(k).copied().unwrap_or(0.0);
+        Some((env.radiance.to_array(), p * env.pdf))
+    }
+
     /// The record of a point, spot or directional light.
     fn delta(light: &DeltaLight) -> Delta {
         match *light {
