@@ -22,7 +22,8 @@
 //!    found and its MIS weight; seven random numbers per lane from sixteen
 //!    PCG32 generators stepped together (64-bit multiplies in lanes); on a
 //!    textured triangle the texture coordinates (in lanes, from a table of
-//!    each triangle's corner coordinates) and the albedo times the diffuse
+//!    each triangle's corner coordinates, prefetched with its record) and
+//!    the albedo times the diffuse
 //!    texture there (a bilinear lookup per lane);
 //! 3. in lanes, for the lanes at a plain Lambertian vertex: the shading
 //!    frame, the light pick over the lights' cumulative probabilities, the
@@ -771,12 +772,16 @@ impl<'a> LaneTracer<'a> {
     }
 
     /// Lane `i`'s ray hit `hit`: its triangle and barycentrics into `h`,
-    /// and the triangle's record asked of the caches, which step 2 reads.
+    /// and the triangle's record and texture coordinates asked of the
+    /// caches, which step 2 reads.
     #[inline(always)]
     fn take_hit(&self, h: &mut Hits, i: usize, hit: MeshHit) {
         h.tri[i] = hit.prim;
         if let Some(t) = self.tris.get(hit.prim as usize) {
             crate::isa::prefetch_record(t);
+        }
+        if let Some(uv) = self.uvs.get(hit.prim as usize) {
+            crate::isa::prefetch_record(uv);
         }
         h.u[i] = hit.u;
         h.v[i] = hit.v;
