@@ -43,6 +43,27 @@ pub struct EnvSample {
     pub pdf: f32,
 }
 
+/// A constant environment (a map of one texel) as the lane path tracer
+/// ([`crate::lane`]) samples it in lanes: the numbers [`EnvLight::sample`],
+/// [`EnvLight::eval`] and [`EnvLight::pdf`] read for it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ConstantEnv {
+    /// Radiance from every direction, intensity included.
+    pub radiance: Vec3,
+    /// The one cell's corner luminances (top left, top right, bottom left,
+    /// bottom right).
+    pub corners: [f32; 4],
+    /// One over the sum of the cell weights.
+    pub inv_total: f32,
+    /// The cosines of the cell row's two polar angles.
+    pub cos: [f32; 2],
+    /// Map frame to world.
+    pub world_from_map: Mat3,
+    /// The density of every direction (what [`EnvLight::pdf`] gives for
+    /// any direction but a NaN one).
+    pub pdf: f32,
+}
+
 /// The scene's environment, ready to be looked up and sampled.
 #[derive(Clone, Debug)]
 pub struct EnvLight {
@@ -297,6 +318,22 @@ impl EnvLight {
         };
         let wi = (self.world_from_map * d_map).normalize_or_zero();
         (wi != Vec3::ZERO).then_some(EnvSample { wi, radiance, pdf })
+    }
+
+    /// The numbers of a constant environment, for sampling in lanes; `None`
+    /// for a map of more than one texel.
+    pub(crate) fn constant(&self) -> Option<ConstantEnv> {
+        let (Some(radiance), Some(pdf), Some(&cos)) = (self.constant, self.uniform_pdf, self.row_cos.first()) else {
+            return None;
+        };
+        Some(ConstantEnv {
+            radiance,
+            corners: self.uniform_corners,
+            inv_total: self.inv_total,
+            cos,
+            world_from_map: self.world_from_map,
+            pdf,
+        })
     }
 
     /// The power by which the light set weighs the environment against the

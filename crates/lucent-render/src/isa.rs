@@ -303,9 +303,11 @@ impl LaneIsa {
     }
 }
 
-/// Asks for the two cache lines of a 128-byte, 64-aligned record `value`
-/// (the lane tracer's triangle records, as soon as a lane's hit names one:
-/// the other lanes' traversals run while the lines arrive). A hint only.
+/// Asks for the cache lines of a record `value` of at most 128 bytes: its
+/// first and its last byte's (the lane tracer's 128-byte, 64-aligned
+/// triangle records and 24-byte texture coordinates, as soon as a lane's
+/// hit names them: the other lanes' traversals run while the lines
+/// arrive). A hint only.
 #[inline(always)]
 pub(crate) fn prefetch_record<T>(value: &T) {
     #[cfg(target_arch = "x86_64")]
@@ -317,7 +319,7 @@ pub(crate) fn prefetch_record<T>(value: &T) {
         // (which has the instruction) is part of every x86-64.
         unsafe {
             _mm_prefetch::<_MM_HINT_T0>(p);
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(size_of::<T>().saturating_sub(1)));
         }
     }
     #[cfg(not(target_arch = "x86_64"))]

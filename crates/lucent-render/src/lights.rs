@@ -385,18 +385,6 @@ impl LightSet {
         p * env.pdf(dir)
     }
 
-    /// Whether every light is a plain emissive triangle (no point or
-    /// directional light, no environment, no emission map): what the lane
-    /// path tracer ([`crate::lane`]) samples in lanes (it samples any other
-    /// set one lane at a time).
-    pub(crate) fn only_plain_emitters(&self) -> bool {
-        self.lights.is_empty()
-            && self.environment.is_none()
-            && self.maps.is_empty()
-            && self.emitters.iter().all(|e| e.map == NONE)
-            && self.cdf.len() == self.emitters.len()
-    }
-
     /// Whether some emitter's radiance is scaled by an emission map (which
     /// the lane path tracer does not read).
     pub(crate) fn has_emission_maps(&self) -> bool {
@@ -407,6 +395,13 @@ impl LightSet {
     /// [`LightSet::sample`]'s order (the emitters first).
     pub(crate) fn pick_tables(&self) -> (&[f32], &[f32]) {
         (&self.cdf, &self.prob)
+    }
+
+    /// The point, spot and directional lights, in [`LightSet::sample`]'s
+    /// order (after the emitters), as it samples them: what the lane path
+    /// tracer ([`crate::lane`]) samples in lanes.
+    pub(crate) fn delta_lights(&self) -> &[DeltaLight] {
+        &self.lights
     }
 
     /// The emissive triangles.
@@ -590,7 +585,7 @@ impl LightSet {
 
 /// A point, spot or directional light as the set samples it.
 #[derive(Clone, Copy, Debug)]
-enum DeltaLight {
+pub(crate) enum DeltaLight {
     /// A directional light: what [`Light::sample`] gives at every point,
     /// its unit direction towards the light and its intensity, worked out
     /// once (the very numbers: the same normalisation of the same vector),

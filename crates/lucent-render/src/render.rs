@@ -470,11 +470,12 @@ fn trace_rows(
         if std::env::var_os("LUCENT_LANES_STATS").is_some() {
             let per_step = |n: u64| n as f64 / counts.steps.max(1) as f64;
             eprintln!(
-                "lanes ({lane_isa:?}): {} steps, per step {:.2} live, {:.2} diffuse, {:.2} diffuse and GGX, {:.2} mirror or glass, {:.2} scalar",
+                "lanes ({lane_isa:?}): {} steps, per step {:.2} live, {:.2} diffuse, {:.2} diffuse and GGX, {:.2} diffuse and glass, {:.2} mirror or glass, {:.2} scalar",
                 counts.steps,
                 per_step(counts.live),
                 per_step(counts.diffuse),
                 per_step(counts.glossy),
+                per_step(counts.diffuse_glass),
                 per_step(counts.delta),
                 per_step(counts.scalar)
             );

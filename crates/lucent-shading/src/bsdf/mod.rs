@@ -616,6 +616,21 @@ impl Bsdf {
         (two && plain).then_some((self.diffuse, self.conductor, self.alpha, self.cdf[0], self.cdf[2]))
     }
 
+    /// What a batch shader needs of a BSDF that is a Lambertian lobe beside
+    /// a smooth dielectric and nothing else (no Phong or conductor lobe, no
+    /// layering): `(diffuse, tint, eta, c0)`, `tint` and `eta` the
+    /// dielectric's, `c0` the probability that `sample` picks the diffuse
+    /// lobe (for `u_lobe < c0`; the dielectric otherwise, with probability
+    /// `1 - c0`); `None` for any other mixture.
+    pub fn diffuse_and_dielectric(&self) -> Option<(Vec3, Vec3, f32, f32)> {
+        let two = self.prob(DIFFUSE) > 0.0
+            && self.prob(GLOSSY) == 0.0
+            && self.prob(CONDUCTOR) == 0.0
+            && self.prob(DIELECTRIC) > 0.0;
+        let plain = self.coupled_f0 < 0.0 && self.kind == Kind::Mixed;
+        (two && plain).then_some((self.diffuse, self.dielectric, self.eta, self.cdf[DIFFUSE]))
+    }
+
     /// True when every lobe with weight is a delta: next-event estimation
     /// is pointless, and `eval` and `pdf` are zero everywhere. (A black
     /// BSDF counts as delta too.)
