@@ -14,7 +14,10 @@
 #       minus the closest-hit pass.
 #   xtask/cachegrind/counts.sh samples [SCENES]    (default "cornell,seed,heavy")
 #       `lucent render` of each scene at 64x64 path traced: (--spp 6) minus
-#       (--spp 2), divided by 4 * 64 * 64 samples (render, film and all).
+#       (--spp 2), divided by 4 * 64 * 64 samples (render, film and all);
+#       RENDER_ARGS adds arguments to each render (e.g. RENDER_ARGS=--lanes
+#       counts the lane tracer; under valgrind it runs its AVX2 copy, since
+#       valgrind hides AVX-512, and packet queries walk their rays one by one).
 #
 # env: LUCENT=path/to/lucent, LUCENT_BENCH=path/to/lucent-bench (binaries to
 #      count instead of this checkout's release builds; give an older build's
@@ -110,10 +113,11 @@ case $MODE in
         heavy) toml=$ROOT/res/scenes/heavy.toml ;;
         *) echo "unknown scene '$scene' (cornell, seed, heavy)" >&2; exit 2 ;;
       esac
-      run=("$LUCENT" -q render "$toml" --integrator path --size 64x64 --threads 1 --seed 1 -o "$OUT/counts.png")
+      # shellcheck disable=SC2206 # RENDER_ARGS is split into arguments on purpose
+      run=("$LUCENT" -q render "$toml" --integrator path --size 64x64 --threads 1 --seed 1 -o "$OUT/counts.png" ${RENDER_ARGS:-})
       two=$(counts "${run[@]}" --spp 2)
       six=$(counts "${run[@]}" --spp 6)
-      echo "{\"scene\":\"$scene\",\"size\":\"64x64\",\"samples\":$((4 * 64 * 64)),$(per "$six" "$two" $((4 * 64 * 64)))}"
+      echo "{\"scene\":\"$scene\",\"args\":\"${RENDER_ARGS:-}\",\"size\":\"64x64\",\"samples\":$((4 * 64 * 64)),$(per "$six" "$two" $((4 * 64 * 64)))}"
     done
     ;;
   *)
