@@ -2291,12 +2291,15 @@ pub(crate) mod tests {
     #[test]
     fn the_lane_tracer_turns_down_what_it_does_not_shade() {
         let settings = settings(1);
+        let [crowded_box, crowded_floor] = instanced_scenes();
         for scene in [
             fixtures::ball_under_sun(),
             fixtures::varnished_floor_under_ceiling(),
             fixtures::mirror_under_ceiling(),
             box_with_glass_and_mirror(),
             sun_sky_texture_and_mixtures(),
+            crowded_box,
+            crowded_floor,
         ] {
             let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
             assert!(LaneTracer::new(&rs, &settings).is_some());
@@ -2324,12 +2327,17 @@ pub(crate) mod tests {
                 ..SceneMaterial::default()
             },
         ] {
-            let mut scene = sun_sky_texture_and_mixtures();
-            let plane = scene.add_mesh("other", shapes::plane());
-            let mat = scene.add_material("other", m);
-            scene.add_instance("other", plane, mat, Affine3A::IDENTITY);
-            let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
-            assert!(LaneTracer::new(&rs, &settings).is_none());
+            // On either tree.
+            for mut scene in [
+                sun_sky_texture_and_mixtures(),
+                crowded(sun_sky_texture_and_mixtures(), -0.85, 1.0),
+            ] {
+                let plane = scene.add_mesh("other", shapes::plane());
+                let mat = scene.add_material("other", m.clone());
+                scene.add_instance("other", plane, mat, Affine3A::IDENTITY);
+                let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+                assert!(LaneTracer::new(&rs, &settings).is_none());
+            }
         }
         let rs = extract(&box_with_glass_and_mirror()).unwrap_or_else(|e| panic!("{e}"));
         let clamped = RenderSettings {

@@ -147,10 +147,11 @@ impl<'a> SceneGeometry<'a> {
             let (kind, albedo, eta) = kind_of(bsdf, textured, true)?;
             let (kind_flat, ..) = kind_of(bsdf, textured, false)?;
             // Every triangle of an emitting instance is an emitter, in
-            // order from the first; one whose radiance is black is none.
-            let emit_first = match lights.emitter(k as u32, 0) {
-                Some((first, e)) if e.radiance != Vec3::ZERO => {
-                    lights.emitter(k as u32, count.checked_sub(1)?)?;
+            // order from the first (the light set must name its last one
+            // too); one whose radiance is black is none.
+            let emit_first = match (count.checked_sub(1), lights.emitter(k as u32, 0)) {
+                (Some(last), Some((first, e))) if e.radiance != Vec3::ZERO => {
+                    lights.emitter(k as u32, last)?;
                     first
                 }
                 _ => NONE,
