@@ -737,12 +737,21 @@ impl<'a> LaneTracer<'a> {
         })
     }
 
+    /// Whether the tracer runs on the two-level tree (else on the flat
+    /// one): what [`Self::trace`]'s `SCENE` must say.
+    pub(crate) fn on_scene_tree(&self) -> bool {
+        matches!(self.geometry, Geom::Scene(_))
+    }
+
     /// Traces `out.len()` paths, path `k` from `start(k)` (its camera ray
-    /// and random stream), and writes each one's radiance to `out[k]`.
-    /// Always inlined: the caller's copy of the loop (`isa::LaneIsa`)
-    /// compiles it, once for each kind of tree.
+    /// and random stream), and writes each one's radiance to `out[k]`,
+    /// with the loop compiled for the two-level tree where `SCENE` is set,
+    /// else for the flat one: `SCENE` must be [`Self::on_scene_tree`] (else
+    /// nothing is traced and `out` is left as it is), so that a caller
+    /// compiles each loop in a function of its own. Always inlined: the
+    /// caller's copy of the loop (`isa::LaneIsa`) compiles it.
     #[inline(always)]
-    pub(crate) fn trace(
+    pub(crate) fn trace<const SCENE: bool>(
         &self,
         start: impl Fn(usize) -> (Ray, Pcg32),
         out: &mut [Vec3],
@@ -750,8 +759,9 @@ impl<'a> LaneTracer<'a> {
         counts: &mut LaneCounts,
     ) {
         match &self.geometry {
-            Geom::Flat(g) => self.trace_in(g, start, out, stats, counts),
-            Geom::Scene(g) => self.trace_in(g, start, out, stats, counts),
+            Geom::Flat(g) if !SCENE => self.trace_in(g, start, out, stats, counts),
+            Geom::Scene(g) if SCENE => self.trace_in(g, start, out, stats, counts),
+            _ => {}
         }
     }
 
