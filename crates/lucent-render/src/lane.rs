@@ -8,17 +8,22 @@
 //! step, so every lane is busy until the pool runs dry (the last fifteen
 //! paths of a row). One step of the sixteen lanes:
 //! 1. per lane: refill an empty lane (camera ray and random stream, as the
-//!    scalar tracer starts them) and trace its ray through the flat tree
-//!    (one ray at a time, the traversal kernel of `lucent-accel`); a ray
+//!    scalar tracer starts them) and trace its ray through the flat tree,
+//!    or the two-level tree where the scene has no flat one (one ray at a
+//!    time, the traversal kernels of `lucent-accel`); a ray
 //!    that leaves the scene ends its path there with the environment's
 //!    light (weighted as the scalar tracer weighs it; in lanes for a
 //!    constant environment) and the lane takes the pool's next path at
 //!    once;
 //! 2. in lanes: the hit's triangle fetched by index (gathers; its record
 //!    was prefetched when the lane's query returned) from a table
-//!    built once per render, one 128-byte record per triangle in render
-//!    space (corners, corner normals, geometric normal, magnitude, albedo,
-//!    emitter); the point and the shading normal interpolated; emission
+//!    built once per render: on the flat tree one 128-byte record per
+//!    triangle in render space (corners, corner normals, geometric normal,
+//!    magnitude, albedo, emitter); on the two-level tree one per mesh
+//!    triangle in object space and one per instance (its transforms,
+//!    material and emitters: `instanced`), the corners and normals moved
+//!    to render space in lanes; the point and the shading normal
+//!    interpolated; emission
 //!    found and its MIS weight; seven random numbers per lane from sixteen
 //!    PCG32 generators stepped together (64-bit multiplies in lanes); on a
 //!    textured triangle the texture coordinates (in lanes, from a table of
@@ -52,9 +57,10 @@
 //!    emitter's black one) ends the path in lanes.
 //!
 //! It renders the scalar tracer's estimator, not its bits: each path's
-//! random numbers are drawn in a different order (seven per vertex), the
-//! interaction is interpolated in render space rather than transformed
-//! from object space, and the sine and cosine are a polynomial's; the
+//! random numbers are drawn in a different order (seven per vertex), on
+//! the flat tree the interaction is interpolated in render space rather
+//! than transformed from object space, and the sine and cosine are a
+//! polynomial's; the
 //! image is the same within noise (`tests` compares image means;
 //! `docs/benchmarks.md` gives the error against Mitsuba's reference, the
 //! same as the scalar tracer's, and the timings: about 0.86 of the scalar
@@ -65,7 +71,8 @@
 //!
 //! The lane tracer runs only where it shades every vertex the scene can
 //! make ([`LaneTracer::new`] says `None` otherwise and the caller keeps the
-//! scalar tracer): the flat tree, no emission map, no texture but a
+//! scalar tracer): either tree ([`Geometry`]: the loop is compiled once
+//! for each), no emission map, no texture but a
 //! diffuse one on the report's terms (no normal map, no metallic-roughness
 //! maps), no vertex colours, tangents or alpha tests, no indirect clamp and
 //! no free delta bounces.
@@ -79,13 +86,15 @@ use crate::flat::FlatBvh;
 use crate::lights::SHADOW_SHORTEN;
 use crate::path::{NARROW_PDF, power_heuristic};
 use crate::{RayStats, RenderScene, RenderSettings};
-use lucent_accel::{MeshBvh, MeshHit};
+use lucent_accel::MeshHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
 use lucent_shading::{Bsdf, DeltaLobe, Frame, LocalDir, Material};
 use std::f32::consts::{FRAC_1_PI, TAU};
 
+mod instanced;
 mod lights;
 
+use instanced::SceneGeometry;
 use lights::{LaneLights, Sampled};
 
 /// The lanes set in `b`, one bit each.
@@ -260,21 +269,152 @@ impl std::ops::Add for LaneCounts {
 /// The path tracer over one scene, sixteen paths at a time.
 pub(crate) struct LaneTracer<'a> {
     scene: &'a RenderScene,
-    flat: &'a FlatBvh,
+    /// The tree the rays are traced through and the triangle records.
+    geometry: Geom<'a>,
     max_depth: u32,
     rr_depth: u32,
-    /// Per flattened triangle of `flat`.
-    tris: Vec<Tri>,
     /// The light set's tables in lanes.
     lights: LaneLights<'a>,
     /// Per material, its (untextured) BSDF.
     bsdfs: Vec<Bsdf>,
-    /// Per flattened triangle, its corners' texture coordinates (u0 v0 u1
-    /// v1 u2 v2) where the material has a diffuse texture; empty where no
-    /// material has one.
-    uvs: Vec<[f32; 6]>,
     /// Per material, its lobes beside the Lambertian one.
     mixtures: Vec<Mixture>,
+}
+
+/// The lane tracer's geometry: the flat tree's, or the two-level tree's.
+enum Geom<'a> {
+    Flat(FlatGeometry<'a>),
+    Scene(SceneGeometry<'a>),
+}
+
+/// What the lane loop asks of a scene's geometry: its rays' hits and
+/// shadow rays, and each hit's interaction in render space. Implemented
+/// for the flat tree ([`FlatGeometry`]) and the two-level tree
+/// ([`SceneGeometry`]); the loop is compiled once for each.
+trait Geometry {
+    /// A closest hit, as the tree's query reports it.
+    type Hit: Copy;
+
+    /// The closest hits of the rays of `active` (bit per lane), walked
+    /// together where the tree does.
+    fn intersect_packet(&self, rays: &[Ray; LANES], active: u16) -> [Option<Self::Hit>; LANES];
+
+    /// The closest hit of one ray.
+    fn intersect(&self, ray: &Ray) -> Option<Self::Hit>;
+
+    /// Bit `l` set where ray `l` of `active` is blocked before `t_max[l]`.
+    fn occluded_packet(&self, rays: &[Ray; LANES], t_max: &[f32; LANES], active: u16) -> u16;
+
+    /// Whether `ray` is blocked before `t_max`.
+    fn occluded(&self, ray: &Ray, t_max: f32) -> bool;
+
+    /// Lane `i`'s ray hit `hit`: its record's index (`h.tri`, [`NONE`] for
+    /// a hit the tables cannot name), instance and barycentrics into `h`,
+    /// and its records asked of the caches, which step 2 reads.
+    fn take_hit(&self, h: &mut Hits, i: usize, hit: Self::Hit);
+
+    /// Whether the tables have a record for every index [`Self::interact`]
+    /// reads (they are never empty where [`LaneTracer::new`] made them).
+    fn ready(&self) -> bool;
+
+    /// Lane `i`'s interaction from its record (an index past the tables
+    /// reads the last one): the point, the geometric and shading normals,
+    /// the magnitude, the albedo, the material, whether it is textured and
+    /// the dielectric's eta into `h`; returns the emitter's index in the
+    /// light set (or [`NONE`]) and the BSDF's kind.
+    fn interact(&self, h: &mut Hits, i: usize) -> (u32, u32);
+
+    /// Per record, the corners' texture coordinates (u0 v0 u1 v1 u2 v2)
+    /// where the material has a diffuse texture; empty where no material
+    /// has one.
+    fn uvs(&self) -> &[[f32; 6]];
+}
+
+/// The flat tree's geometry: one render-space record per flattened
+/// triangle.
+struct FlatGeometry<'a> {
+    flat: &'a FlatBvh,
+    /// Per flattened triangle of `flat`.
+    tris: Vec<Tri>,
+    /// Per flattened triangle, its corners' texture coordinates, or empty
+    /// ([`Geometry::uvs`]).
+    uvs: Vec<[f32; 6]>,
+}
+
+impl Geometry for FlatGeometry<'_> {
+    type Hit = MeshHit;
+
+    #[inline(always)]
+    fn intersect_packet(&self, rays: &[Ray; LANES], active: u16) -> [Option<MeshHit>; LANES] {
+        self.flat
+            .mesh_bvh()
+            .intersect_packet(rays, &[f32::INFINITY; LANES], active)
+    }
+
+    #[inline(always)]
+    fn intersect(&self, ray: &Ray) -> Option<MeshHit> {
+        self.flat.mesh_bvh().intersect(ray, f32::INFINITY)
+    }
+
+    #[inline(always)]
+    fn occluded_packet(&self, rays: &[Ray; LANES], t_max: &[f32; LANES], active: u16) -> u16 {
+        self.flat.occluded_packet(rays, t_max, active)
+    }
+
+    #[inline(always)]
+    fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        self.flat.occluded(ray, t_max)
+    }
+
+    #[inline(always)]
+    fn take_hit(&self, h: &mut Hits, i: usize, hit: MeshHit) {
+        h.tri[i] = hit.prim;
+        if let Some(t) = self.tris.get(hit.prim as usize) {
+            crate::isa::prefetch_record(t);
+        }
+        if let Some(uv) = self.uvs.get(hit.prim as usize) {
+            crate::isa::prefetch_record(uv);
+        }
+        h.u[i] = hit.u;
+        h.v[i] = hit.v;
+    }
+
+    #[inline(always)]
+    fn ready(&self) -> bool {
+        !self.tris.is_empty()
+    }
+
+    #[inline(always)]
+    fn interact(&self, h: &mut Hits, i: usize) -> (u32, u32) {
+        let tris = &self.tris[..];
+        let t = &tris[(h.tri[i] as usize).min(tris.len().saturating_sub(1))];
+        let (u, v) = (h.u[i], h.v[i]);
+        let w = 1.0 - u - v;
+        let mut ns = [0.0f32; 3];
+        for c in 0..3 {
+            h.p[c][i] = t.p0[c] + t.e1[c] * u + t.e2[c] * v;
+            h.ng[c][i] = t.ng[c];
+            ns[c] = t.n0[c] * w + t.n1[c] * u + t.n2[c] * v;
+        }
+        let l2 = ns[0] * ns[0] + ns[1] * ns[1] + ns[2] * ns[2];
+        // A degenerate interpolated normal falls back to the geometric one.
+        let ok = l2 > 0.0 && l2 <= f32::MAX;
+        let r = 1.0 / l2.sqrt();
+        for c in 0..3 {
+            h.ns[c][i] = if ok { ns[c] * r } else { t.ng[c] };
+            h.albedo[c][i] = t.albedo[c];
+        }
+        h.magnitude[i] = t.magnitude;
+        h.eta[i] = t.eta;
+        h.material[i] = t.material;
+        h.textured[i] = t.textured != 0;
+        (t.emitter, t.kind)
+    }
+
+    #[inline(always)]
+    fn uvs(&self) -> &[[f32; 6]] {
+        &self.uvs
+    }
 }
 
 /// The state of the sixteen paths.
@@ -302,23 +442,29 @@ struct Paths {
 
 /// The pool's next camera rays, traced together, with their paths' random
 /// streams and their hits, for the lanes to take one by one.
-struct CameraRays {
+struct CameraRays<H> {
     ray: [Ray; LANES],
     state: [u64; LANES],
     inc: [u64; LANES],
     /// The paths' indices in the pool.
     id: Lu,
-    hit: [Option<MeshHit>; LANES],
+    hit: [Option<H>; LANES],
     /// Rays held, and of those the first not taken yet.
     len: usize,
     at: usize,
 }
 
-impl CameraRays {
+impl<H: Copy> CameraRays<H> {
     /// The pool's next (up to) sixteen paths from `*next` (of `n`),
     /// started by `start`, their camera rays traced as one packet.
     #[inline(always)]
-    fn fill(&mut self, bvh: &MeshBvh, start: &impl Fn(usize) -> (Ray, Pcg32), next: &mut usize, n: usize) {
+    fn fill<G: Geometry<Hit = H>>(
+        &mut self,
+        geometry: &G,
+        start: &impl Fn(usize) -> (Ray, Pcg32),
+        next: &mut usize,
+        n: usize,
+    ) {
         self.len = (n - *next).min(LANES);
         self.at = 0;
         for k in 0..self.len {
@@ -329,13 +475,16 @@ impl CameraRays {
             *next += 1;
         }
         let active = (((1u32 << self.len) - 1) & 0xffff) as u16;
-        self.hit = bvh.intersect_packet(&self.ray, &[f32::INFINITY; LANES], active);
+        self.hit = geometry.intersect_packet(&self.ray, active);
     }
 }
 
 /// One step's hits and vertices in lanes.
 struct Hits {
+    /// The index of the hit's record ([`Geometry::take_hit`]), or [`NONE`].
     tri: Lu,
+    /// The instance hit (two-level tree only).
+    inst: Lu,
     u: Lf,
     v: Lf,
     p: L3,
@@ -343,6 +492,11 @@ struct Hits {
     ns: L3,
     magnitude: Lf,
     albedo: L3,
+    /// The hit's material.
+    material: Lu,
+    /// Whether its albedo is textured (the material's diffuse texture at
+    /// the hit's coordinates).
+    textured: Lb,
     /// The vertex is shaded in lanes (plain Lambertian, path goes on).
     diffuse: Lb,
     /// The vertex is a mirror or glass one, shaded in lanes.
@@ -360,6 +514,35 @@ struct Hits {
     diffuse_glass: Lb,
     /// The seven numbers of the vertex.
     rnd: [Lf; 7],
+}
+
+impl Hits {
+    /// No hit in any lane.
+    #[inline(always)]
+    fn none() -> Hits {
+        Hits {
+            tri: [NONE; LANES],
+            inst: [0; LANES],
+            u: Z,
+            v: Z,
+            p: Z3,
+            ng: Z3,
+            ns: Z3,
+            magnitude: Z,
+            albedo: Z3,
+            material: [0; LANES],
+            textured: [false; LANES],
+            diffuse: [false; LANES],
+            delta: [false; LANES],
+            glass: [false; LANES],
+            uv: [Z; 2],
+            eta: Z,
+            scalar: [false; LANES],
+            glossy: [false; LANES],
+            diffuse_glass: [false; LANES],
+            rnd: [Z; 7],
+        }
+    }
 }
 
 /// One step's light samples at the Lambertian lanes.
@@ -446,14 +629,31 @@ impl<'a> LaneTracer<'a> {
         if !plain {
             return None;
         }
-        let flat = scene.flat_bvh()?;
         let bsdfs: Vec<Bsdf> = scene.materials.iter().map(|m| m.bsdf_at(None, None)).collect();
         let mixtures = bsdfs.iter().map(Mixture::of).collect();
+        let geometry = match scene.flat_bvh() {
+            Some(flat) => Geom::Flat(Self::flat_geometry(scene, flat, &bsdfs)?),
+            None => Geom::Scene(SceneGeometry::new(scene, &bsdfs)?),
+        };
+        Some(Self {
+            scene,
+            geometry,
+            max_depth: settings.max_depth,
+            rr_depth: settings.rr_depth.max(1),
+            lights: LaneLights::new(lights),
+            bsdfs,
+            mixtures,
+        })
+    }
+
+    /// The flat tree's records: one per flattened triangle, in render
+    /// space; `None` where one cannot be named.
+    fn flat_geometry<'f>(scene: &RenderScene, flat: &'f FlatBvh, bsdfs: &[Bsdf]) -> Option<FlatGeometry<'f>> {
         let any_texture = scene.materials.iter().any(|m| m.diffuse_map.is_some());
         let mut tris = Vec::with_capacity(flat.owners().len());
         let mut uvs = Vec::with_capacity(if any_texture { flat.owners().len() } else { 0 });
         for &(instance, prim) in flat.owners() {
-            let tri = Self::tri(scene, &bsdfs, instance, prim)?;
+            let tri = Self::tri(scene, bsdfs, instance, prim)?;
             if any_texture {
                 uvs.push(if tri.textured != 0 {
                     Self::corner_uvs(scene, instance, prim)?
@@ -463,17 +663,10 @@ impl<'a> LaneTracer<'a> {
             }
             tris.push(tri);
         }
-        Some(Self {
-            scene,
-            flat,
-            max_depth: settings.max_depth,
-            rr_depth: settings.rr_depth.max(1),
-            tris,
-            lights: LaneLights::new(lights),
-            bsdfs,
-            uvs,
-            mixtures,
-        })
+        if tris.is_empty() {
+            return None;
+        }
+        Some(FlatGeometry { flat, tris, uvs })
     }
 
     /// The texture coordinates of triangle `prim` of `instance`'s corners
@@ -520,23 +713,7 @@ impl<'a> LaneTracer<'a> {
             .is_some_and(|m| m.diffuse_map.is_some())
             && inst.reads.uvs
             && mesh.uvs().is_some();
-        let (kind, albedo, eta) = match (bsdf.lambertian_albedo(), bsdf.single_delta_lobe()) {
-            (Some(albedo), _) if ng != Vec3::ZERO => (KIND_DIFFUSE, albedo, 1.0),
-            (_, Some(DeltaLobe::Mirror(r))) if ng != Vec3::ZERO => (KIND_MIRROR, r, 1.0),
-            (_, Some(DeltaLobe::Dielectric(tint, eta))) if ng != Vec3::ZERO => (KIND_GLASS, tint, eta),
-            _ if ng != Vec3::ZERO && bsdf.diffuse_and_rough_conductor().is_some() => {
-                let (diffuse, ..) = bsdf.diffuse_and_rough_conductor()?;
-                (KIND_GLOSSY, diffuse, 1.0)
-            }
-            // A texture changes the lobes' selection with the diffuse
-            // weight: that mixture stays the scalar vertex's.
-            _ if ng != Vec3::ZERO && !textured && bsdf.diffuse_and_dielectric().is_some() => {
-                let (diffuse, _, eta, _) = bsdf.diffuse_and_dielectric()?;
-                (KIND_DIFFUSE_GLASS, diffuse, eta)
-            }
-            _ if bsdf.is_delta() && bsdf.albedo() == Vec3::ZERO => (KIND_BLACK, Vec3::ZERO, 1.0),
-            _ => (KIND_OTHER, Vec3::ZERO, 1.0),
-        };
+        let (kind, albedo, eta) = kind_of(bsdf, textured, ng != Vec3::ZERO)?;
         let emitter = scene
             .light_set
             .emitter(instance, prim)
@@ -560,13 +737,39 @@ impl<'a> LaneTracer<'a> {
         })
     }
 
+    /// Whether the tracer runs on the two-level tree (else on the flat
+    /// one): what [`Self::trace`]'s `SCENE` must say.
+    pub(crate) fn on_scene_tree(&self) -> bool {
+        matches!(self.geometry, Geom::Scene(_))
+    }
+
     /// Traces `out.len()` paths, path `k` from `start(k)` (its camera ray
-    /// and random stream), and writes each one's radiance to `out[k]`.
-    /// Always inlined: the caller's copy of the loop (`isa::LaneIsa`)
-    /// compiles it.
+    /// and random stream), and writes each one's radiance to `out[k]`,
+    /// with the loop compiled for the two-level tree where `SCENE` is set,
+    /// else for the flat one: `SCENE` must be [`Self::on_scene_tree`] (else
+    /// nothing is traced and `out` is left as it is), so that a caller
+    /// compiles each loop in a function of its own. Always inlined: the
+    /// caller's copy of the loop (`isa::LaneIsa`) compiles it.
     #[inline(always)]
-    pub(crate) fn trace(
+    pub(crate) fn trace<const SCENE: bool>(
         &self,
+        start: impl Fn(usize) -> (Ray, Pcg32),
+        out: &mut [Vec3],
+        stats: &mut RayStats,
+        counts: &mut LaneCounts,
+    ) {
+        match &self.geometry {
+            Geom::Flat(g) if !SCENE => self.trace_in(g, start, out, stats, counts),
+            Geom::Scene(g) if SCENE => self.trace_in(g, start, out, stats, counts),
+            _ => {}
+        }
+    }
+
+    /// [`Self::trace`] through `geometry`.
+    #[inline(always)]
+    fn trace_in<G: Geometry>(
+        &self,
+        geometry: &G,
         start: impl Fn(usize) -> (Ray, Pcg32),
         out: &mut [Vec3],
         stats: &mut RayStats,
@@ -587,25 +790,7 @@ impl<'a> LaneTracer<'a> {
             depth: [0; LANES],
             narrow: [false; LANES],
         };
-        let mut h = Hits {
-            tri: [NONE; LANES],
-            u: Z,
-            v: Z,
-            p: Z3,
-            ng: Z3,
-            ns: Z3,
-            magnitude: Z,
-            albedo: Z3,
-            diffuse: [false; LANES],
-            delta: [false; LANES],
-            glass: [false; LANES],
-            uv: [Z; 2],
-            eta: Z,
-            scalar: [false; LANES],
-            glossy: [false; LANES],
-            diffuse_glass: [false; LANES],
-            rnd: [Z; 7],
-        };
+        let mut h = Hits::none();
         let n = out.len().min(NONE as usize);
         let mut next = 0usize;
         let mut camera = CameraRays {
@@ -641,19 +826,18 @@ impl<'a> LaneTracer<'a> {
                     );
                 }
             }
-            let bvh = self.flat.mesh_bvh();
             let narrow = held & lane_mask(&paths.narrow);
-            let mut hits = bvh.intersect_packet(&rays, &[f32::INFINITY; LANES], narrow);
+            let mut hits = geometry.intersect_packet(&rays, narrow);
             let mut left = [false; LANES];
             for i in 0..LANES {
                 if held & (1 << i) == 0 {
                     continue;
                 }
                 if narrow & (1 << i) == 0 {
-                    hits[i] = bvh.intersect(&rays[i], f32::INFINITY);
+                    hits[i] = geometry.intersect(&rays[i]);
                 }
                 match hits[i] {
-                    Some(hit) => self.take_hit(&mut h, i, hit),
+                    Some(hit) => geometry.take_hit(&mut h, i, hit),
                     None if sky.is_some() => left[i] = true,
                     None => self.escape(&mut paths, i, rays[i].dir, out),
                 }
@@ -669,7 +853,7 @@ impl<'a> LaneTracer<'a> {
                         if next >= n {
                             break;
                         }
-                        camera.fill(bvh, &start, &mut next, n);
+                        camera.fill(geometry, &start, &mut next, n);
                     }
                     let at = camera.at % LANES;
                     camera.at += 1;
@@ -691,7 +875,7 @@ impl<'a> LaneTracer<'a> {
                     paths.narrow[i] = true;
                     stats.primary += 1;
                     match (camera.hit[at], sky) {
-                        (Some(hit), _) => self.take_hit(&mut h, i, hit),
+                        (Some(hit), _) => geometry.take_hit(&mut h, i, hit),
                         // A camera ray (throughput 1, no radiance, weight
                         // 1) finds the sky's radiance.
                         (None, Some((radiance, _))) => {
@@ -713,7 +897,7 @@ impl<'a> LaneTracer<'a> {
             counts.steps += 1;
             counts.live += live;
             // 2. The vertices, emission and the numbers, in lanes.
-            self.vertices(&mut paths, &mut h);
+            self.vertices(geometry, &mut paths, &mut h);
             let mut n_diffuse = 0;
             let mut n_delta = 0;
             let mut n_scalar = 0;
@@ -741,9 +925,9 @@ impl<'a> LaneTracer<'a> {
                 for i in 0..LANES {
                     mine[i] = h.diffuse[i] || h.glossy[i] || h.diffuse_glass[i];
                 }
-                self.shade_diffuse::<true>(&mut paths, &h, &mine, &mut dl, &mut go_on, stats);
+                self.shade_diffuse::<true, G>(geometry, &mut paths, &h, &mine, &mut dl, &mut go_on, stats);
             } else if n_diffuse > 0 {
-                self.shade_diffuse::<false>(&mut paths, &h, &h.diffuse, &mut dl, &mut go_on, stats);
+                self.shade_diffuse::<false, G>(geometry, &mut paths, &h, &h.diffuse, &mut dl, &mut go_on, stats);
             }
             // Mirrors and glass, and the mixtures' dielectric lobes.
             if lane_mask(&dl.mine) != 0 {
@@ -753,7 +937,7 @@ impl<'a> LaneTracer<'a> {
             if n_scalar > 0 {
                 for i in 0..LANES {
                     if h.scalar[i] {
-                        go_on[i] = self.scalar_vertex(&mut paths, &h, i, stats);
+                        go_on[i] = self.scalar_vertex(geometry, &mut paths, &h, i, stats);
                     }
                 }
             }
@@ -769,22 +953,6 @@ impl<'a> LaneTracer<'a> {
                 }
             }
         }
-    }
-
-    /// Lane `i`'s ray hit `hit`: its triangle and barycentrics into `h`,
-    /// and the triangle's record and texture coordinates asked of the
-    /// caches, which step 2 reads.
-    #[inline(always)]
-    fn take_hit(&self, h: &mut Hits, i: usize, hit: MeshHit) {
-        h.tri[i] = hit.prim;
-        if let Some(t) = self.tris.get(hit.prim as usize) {
-            crate::isa::prefetch_record(t);
-        }
-        if let Some(uv) = self.uvs.get(hit.prim as usize) {
-            crate::isa::prefetch_record(uv);
-        }
-        h.u[i] = hit.u;
-        h.v[i] = hit.v;
     }
 
     /// The lanes `left`, whose paths left the scene along their rays, under
@@ -843,38 +1011,20 @@ impl<'a> LaneTracer<'a> {
     /// Step 2: the hits' interactions (gathered from the triangle table),
     /// the emission they find, the depth limit and the vertex's numbers.
     #[inline(always)]
-    fn vertices(&self, paths: &mut Paths, h: &mut Hits) {
-        let tris = &self.tris[..];
+    fn vertices<G: Geometry>(&self, geometry: &G, paths: &mut Paths, h: &mut Hits) {
         let emits = &self.lights.emits[..];
-        let (Some(t_last), Some(e_last)) = (tris.len().checked_sub(1), emits.len().checked_sub(1)) else {
+        let (true, Some(e_last)) = (geometry.ready(), emits.len().checked_sub(1)) else {
             h.diffuse = [false; LANES];
             h.scalar = [false; LANES];
             return;
         };
         for i in 0..LANES {
             let hit = h.tri[i] != NONE && paths.id[i] != NONE;
-            let t = &tris[(h.tri[i] as usize).min(t_last)];
-            let (u, v) = (h.u[i], h.v[i]);
-            let w = 1.0 - u - v;
-            let mut ns = [0.0f32; 3];
-            for c in 0..3 {
-                h.p[c][i] = t.p0[c] + t.e1[c] * u + t.e2[c] * v;
-                h.ng[c][i] = t.ng[c];
-                ns[c] = t.n0[c] * w + t.n1[c] * u + t.n2[c] * v;
-            }
-            let l2 = ns[0] * ns[0] + ns[1] * ns[1] + ns[2] * ns[2];
-            // A degenerate interpolated normal falls back to the geometric one.
-            let ok = l2 > 0.0 && l2 <= f32::MAX;
-            let r = 1.0 / l2.sqrt();
-            for c in 0..3 {
-                h.ns[c][i] = if ok { ns[c] * r } else { t.ng[c] };
-                h.albedo[c][i] = t.albedo[c];
-            }
-            h.magnitude[i] = t.magnitude;
+            let (emitter, kind) = geometry.interact(h, i);
             // Emission found by the path, weighted against light sampling.
-            let e = &emits[(t.emitter as usize).min(e_last)];
+            let e = &emits[(emitter as usize).min(e_last)];
             let wo_dot = -(e.n[0] * paths.d[0][i] + e.n[1] * paths.d[1][i] + e.n[2] * paths.d[2][i]);
-            let emits_here = hit && t.emitter != NONE && (e.two_sided != 0 || wo_dot > 0.0);
+            let emits_here = hit && emitter != NONE && (e.two_sided != 0 || wo_dot > 0.0);
             let mut dd = [0.0f32; 3];
             for c in 0..3 {
                 dd[c] = h.p[c][i] - paths.prev_p[c][i];
@@ -897,16 +1047,15 @@ impl<'a> LaneTracer<'a> {
                 paths.rad[c][i] += if emits_here { add } else { 0.0 };
             }
             let goes_on = hit && paths.depth[i] + 1 < self.max_depth;
-            h.diffuse[i] = goes_on && t.kind == KIND_DIFFUSE;
-            h.delta[i] = goes_on && (t.kind == KIND_MIRROR || t.kind == KIND_GLASS);
-            h.glass[i] = t.kind == KIND_GLASS;
-            h.eta[i] = t.eta;
-            h.scalar[i] = goes_on && t.kind == KIND_OTHER;
-            h.glossy[i] = goes_on && t.kind == KIND_GLOSSY;
-            h.diffuse_glass[i] = goes_on && t.kind == KIND_DIFFUSE_GLASS;
+            h.diffuse[i] = goes_on && kind == KIND_DIFFUSE;
+            h.delta[i] = goes_on && (kind == KIND_MIRROR || kind == KIND_GLASS);
+            h.glass[i] = kind == KIND_GLASS;
+            h.scalar[i] = goes_on && kind == KIND_OTHER;
+            h.glossy[i] = goes_on && kind == KIND_GLOSSY;
+            h.diffuse_glass[i] = goes_on && kind == KIND_DIFFUSE_GLASS;
         }
-        if !self.uvs.is_empty() {
-            self.textures(h);
+        if !geometry.uvs().is_empty() {
+            self.textures(geometry.uvs(), h);
         }
         // The vertex's seven numbers, sixteen generators stepped together.
         for k in 0..7 {
@@ -926,13 +1075,8 @@ impl<'a> LaneTracer<'a> {
     /// the material's texture there (a bilinear lookup per lane, the
     /// scalar tracer's `Material::diffuse_tint`).
     #[inline(always)]
-    fn textures(&self, h: &mut Hits) {
-        let uvs = &self.uvs[..];
+    fn textures(&self, uvs: &[[f32; 6]], h: &mut Hits) {
         let Some(last) = uvs.len().checked_sub(1) else {
-            return;
-        };
-        let tris = &self.tris[..];
-        let Some(t_last) = tris.len().checked_sub(1) else {
             return;
         };
         let mut any = false;
@@ -944,8 +1088,7 @@ impl<'a> LaneTracer<'a> {
             let w = 1.0 - u - v;
             h.uv[0][i] = c[0] * w + c[2] * u + c[4] * v;
             h.uv[1][i] = c[1] * w + c[3] * u + c[5] * v;
-            textured[i] =
-                (h.diffuse[i] || h.scalar[i] || h.glossy[i]) && tris[(h.tri[i] as usize).min(t_last)].textured != 0;
+            textured[i] = (h.diffuse[i] || h.scalar[i] || h.glossy[i]) && h.textured[i];
             any |= textured[i];
         }
         if !any {
@@ -956,7 +1099,7 @@ impl<'a> LaneTracer<'a> {
             if !textured[i] {
                 continue;
             }
-            let m = tris[(h.tri[i] as usize).min(t_last)].material;
+            let m = h.material[i];
             if let Some(tex) = materials.get(m as usize).and_then(|m| m.diffuse_map.as_deref()) {
                 let tint = tex
                     .sample_bilinear(Vec2::new(h.uv[0][i], h.uv[1][i]))
@@ -975,8 +1118,13 @@ impl<'a> LaneTracer<'a> {
     /// continue, and adds to `dl` the lanes whose lobe choice took a
     /// dielectric.
     #[inline(always)]
-    fn shade_diffuse<const G: bool>(
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the lanes' state, and the geometry for the shadow rays"
+    )]
+    fn shade_diffuse<const G: bool, T: Geometry>(
         &self,
+        geometry: &T,
         paths: &mut Paths,
         h: &Hits,
         mine: &Lb,
@@ -1002,10 +1150,9 @@ impl<'a> LaneTracer<'a> {
         let mut tint = Z3;
         if G {
             let mixtures = &self.mixtures[..];
-            let tris = &self.tris[..];
-            if let (Some(g_last), Some(t_last)) = (mixtures.len().checked_sub(1), tris.len().checked_sub(1)) {
+            if let Some(g_last) = mixtures.len().checked_sub(1) {
                 for i in 0..LANES {
-                    let m = tris[(h.tri[i] as usize).min(t_last)].material;
+                    let m = h.material[i];
                     let g = &mixtures[(m as usize).min(g_last)];
                     for c in 0..3 {
                         bl.conductor[c][i] = g.conductor[c];
@@ -1073,14 +1220,14 @@ impl<'a> LaneTracer<'a> {
         }
         let tests = lane_mask(&shadow);
         let together = tests & lane_mask(&paths.narrow);
-        let blocked = self.flat.occluded_packet(&rays, &st, together);
+        let blocked = geometry.occluded_packet(&rays, &st, together);
         for i in 0..LANES {
             if shadow[i] {
                 stats.shadow += 1;
                 visible[i] = if together & (1 << i) != 0 {
                     blocked & (1 << i) == 0
                 } else {
-                    !self.flat.occluded(&rays[i], st[i])
+                    !geometry.occluded(&rays[i], st[i])
                 };
             }
         }
@@ -1534,19 +1681,22 @@ impl<'a> LaneTracer<'a> {
     /// Step 6 for lane `i`: the scalar tracer's vertex for any BSDF, from
     /// the lane's numbers; whether the path goes on.
     #[inline(never)]
-    fn scalar_vertex(&self, paths: &mut Paths, h: &Hits, i: usize, stats: &mut RayStats) -> bool {
+    fn scalar_vertex<G: Geometry>(
+        &self,
+        geometry: &G,
+        paths: &mut Paths,
+        h: &Hits,
+        i: usize,
+        stats: &mut RayStats,
+    ) -> bool {
         let lights = &self.scene.light_set;
         let get = |a: &L3| Vec3A::new(a[0][i], a[1][i], a[2][i]);
-        let Some(bsdf) = self
-            .tris
-            .get(h.tri[i] as usize)
-            .and_then(|t| self.bsdfs.get(t.material as usize).map(|b| (b, t.material)))
-        else {
+        let material = h.material[i];
+        let Some(plain) = self.bsdfs.get(material as usize) else {
             return false;
         };
-        let (plain, material) = bsdf;
         // A textured material's BSDF at the hit (built here, on the stack).
-        let textured = self.tris.get(h.tri[i] as usize).is_some_and(|t| t.textured != 0);
+        let textured = h.textured[i];
         let varying = match self.scene.materials.get(material as usize) {
             Some(m) if textured => Some(m.bsdf_at(Some(Vec2::new(h.uv[0][i], h.uv[1][i])), None)),
             _ => None,
@@ -1570,7 +1720,7 @@ impl<'a> LaneTracer<'a> {
                 stats.shadow += 1;
                 let origin = offset_ray_origin_a(p, if ls.wi.dot(ng) >= 0.0 { ng } else { -ng }, magnitude);
                 if let Some((shadow_ray, t_max)) = ls.shadow_ray(origin)
-                    && !self.flat.occluded(&shadow_ray, t_max)
+                    && !geometry.occluded(&shadow_ray, t_max)
                 {
                     let w = if ls.delta {
                         1.0
@@ -1625,6 +1775,30 @@ impl<'a> LaneTracer<'a> {
         }
         true
     }
+}
+
+/// The kind the lanes shade a triangle of `bsdf` as, with its albedo and
+/// eta ([`Tri`]'s): `textured` where the albedo is, `flat` unless the
+/// triangle has no normal (then only a black or the scalar vertex takes
+/// it); `None` where the BSDF's lobes cannot be named.
+fn kind_of(bsdf: &Bsdf, textured: bool, flat: bool) -> Option<(u32, Vec3, f32)> {
+    Some(match (bsdf.lambertian_albedo(), bsdf.single_delta_lobe()) {
+        (Some(albedo), _) if flat => (KIND_DIFFUSE, albedo, 1.0),
+        (_, Some(DeltaLobe::Mirror(r))) if flat => (KIND_MIRROR, r, 1.0),
+        (_, Some(DeltaLobe::Dielectric(tint, eta))) if flat => (KIND_GLASS, tint, eta),
+        _ if flat && bsdf.diffuse_and_rough_conductor().is_some() => {
+            let (diffuse, ..) = bsdf.diffuse_and_rough_conductor()?;
+            (KIND_GLOSSY, diffuse, 1.0)
+        }
+        // A texture changes the lobes' selection with the diffuse
+        // weight: that mixture stays the scalar vertex's.
+        _ if flat && !textured && bsdf.diffuse_and_dielectric().is_some() => {
+            let (diffuse, _, eta, _) = bsdf.diffuse_and_dielectric()?;
+            (KIND_DIFFUSE_GLASS, diffuse, eta)
+        }
+        _ if bsdf.is_delta() && bsdf.albedo() == Vec3::ZERO => (KIND_BLACK, Vec3::ZERO, 1.0),
+        _ => (KIND_OTHER, Vec3::ZERO, 1.0),
+    })
 }
 
 /// PCG32's multiplier (`lucent_geom::Pcg32`'s).
@@ -1880,6 +2054,71 @@ pub(crate) mod tests {
         scene
     }
 
+    /// `scene` with a crowd that relies on instancing, so that it keeps the
+    /// two-level tree (`FlatBvh::build` refuses it): twelve instances of a
+    /// smooth ball of 80 triangles in a ring of `radius` at height `y`
+    /// (turned, stretched, one of them mirrored), half of them a new
+    /// Lambertian material and half a new mirror, and two small emitting
+    /// cubes that share a mesh (emitters named by instance and triangle).
+    pub(super) fn crowded(mut scene: Scene, y: f32, radius: f32) -> Scene {
+        let pebble = scene.add_mesh("pebble", shapes::icosphere(1));
+        let lamp = scene.add_mesh("lamp", shapes::cuboid());
+        let clay = scene.add_material(
+            "clay",
+            SceneMaterial {
+                kd: Vec3::new(0.7, 0.45, 0.25),
+                ..SceneMaterial::default()
+            },
+        );
+        let chrome = scene.add_material(
+            "chrome",
+            SceneMaterial {
+                kd: Vec3::ZERO,
+                kr: Vec3::splat(0.8),
+                ..SceneMaterial::default()
+            },
+        );
+        let glow = scene.add_material(
+            "glow",
+            SceneMaterial {
+                kd: Vec3::splat(0.2),
+                emission: Vec3::new(3.0, 2.5, 1.5),
+                ..SceneMaterial::default()
+            },
+        );
+        for k in 0..12 {
+            let a = k as f32 * std::f32::consts::TAU / 12.0;
+            let scale = if k == 5 {
+                Vec3::new(-0.15, 0.2, 0.15)
+            } else {
+                Vec3::new(0.12 + 0.01 * k as f32, 0.2, 0.15)
+            };
+            let turn = lucent_geom::Quat::from_rotation_y(a) * lucent_geom::Quat::from_rotation_x(0.3 * k as f32);
+            let at = Vec3::new(radius * a.cos(), y + 0.05 * (k % 3) as f32, radius * a.sin());
+            let material = if k % 2 == 0 { clay } else { chrome };
+            let xf = Affine3A::from_scale_rotation_translation(scale, turn, at);
+            scene.add_instance(&format!("pebble{k}"), pebble, material, xf);
+        }
+        for (k, x) in [-0.4f32, 0.5].into_iter().enumerate() {
+            let xf = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(0.15),
+                lucent_geom::Quat::from_rotation_y(0.4),
+                Vec3::new(x, y + 0.6, 0.3),
+            );
+            scene.add_instance(&format!("lamp{k}"), lamp, glow, xf);
+        }
+        scene
+    }
+
+    /// [`box_with_glass_and_mirror`] and [`sun_sky_texture_and_mixtures`]
+    /// on the two-level tree ([`crowded`]).
+    pub(super) fn instanced_scenes() -> [Scene; 2] {
+        [
+            crowded(box_with_glass_and_mirror(), -1.2, 1.1),
+            crowded(sun_sky_texture_and_mixtures(), -0.85, 1.0),
+        ]
+    }
+
     /// [`sun_sky_texture_and_mixtures`] under a turned environment map of
     /// 8x4 texels instead of the constant sky, with a point light and a
     /// spot light besides the sun: every kind of light the lanes sample.
@@ -1952,10 +2191,13 @@ pub(crate) mod tests {
 
     #[test]
     fn every_copy_of_the_lane_loop_gives_the_same_bits_on_any_thread_count() {
+        let [crowded_box, crowded_floor] = instanced_scenes();
         for scene in [
             box_with_glass_and_mirror(),
             sun_sky_texture_and_mixtures(),
             lamps_and_a_map(),
+            crowded_box,
+            crowded_floor,
         ] {
             let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
             let settings = settings(3);
@@ -2031,15 +2273,43 @@ pub(crate) mod tests {
         assert!(rel.max_element() < 0.01, "lanes {lanes} scalar {scalar}");
     }
 
+    /// Scenes on the two-level tree: instances' triangles moved to render
+    /// space in lanes, their emitters named by instance and triangle, a
+    /// mirrored instance; the image mean is the scalar tracer's within
+    /// noise.
+    #[test]
+    fn on_the_two_level_tree_the_lane_tracer_renders_the_scalar_tracers_image_within_noise() {
+        for scene in instanced_scenes() {
+            let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+            assert!(rs.flat_bvh().is_none(), "the scene keeps the two-level tree");
+            let settings = RenderSettings {
+                max_depth: 8,
+                ..settings(128)
+            };
+            assert!(LaneTracer::new(&rs, &settings).is_some_and(|lt| matches!(lt.geometry, Geom::Scene(_))));
+            let lanes = mean(&lane_film(&rs, &settings, LaneIsa::Baseline, 0));
+            let mut scalar = Film::new(settings.width, settings.height);
+            crate::render_samples(&rs, &settings, &mut scalar, 0..settings.spp, &|_| {});
+            let scalar = mean(&scalar);
+            let rel = (lanes - scalar).abs() / scalar;
+            // Measured over seeds 0 to 6: the two means differ by -0.21 %
+            // to +0.04 % in the box, -0.30 % to +0.25 % on the floor.
+            assert!(rel.max_element() < 0.01, "lanes {lanes} scalar {scalar}");
+        }
+    }
+
     #[test]
     fn the_lane_tracer_turns_down_what_it_does_not_shade() {
         let settings = settings(1);
+        let [crowded_box, crowded_floor] = instanced_scenes();
         for scene in [
             fixtures::ball_under_sun(),
             fixtures::varnished_floor_under_ceiling(),
             fixtures::mirror_under_ceiling(),
             box_with_glass_and_mirror(),
             sun_sky_texture_and_mixtures(),
+            crowded_box,
+            crowded_floor,
         ] {
             let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
             assert!(LaneTracer::new(&rs, &settings).is_some());
@@ -2067,12 +2337,17 @@ pub(crate) mod tests {
                 ..SceneMaterial::default()
             },
         ] {
-            let mut scene = sun_sky_texture_and_mixtures();
-            let plane = scene.add_mesh("other", shapes::plane());
-            let mat = scene.add_material("other", m);
-            scene.add_instance("other", plane, mat, Affine3A::IDENTITY);
-            let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
-            assert!(LaneTracer::new(&rs, &settings).is_none());
+            // On either tree.
+            for mut scene in [
+                sun_sky_texture_and_mixtures(),
+                crowded(sun_sky_texture_and_mixtures(), -0.85, 1.0),
+            ] {
+                let plane = scene.add_mesh("other", shapes::plane());
+                let mat = scene.add_material("other", m.clone());
+                scene.add_instance("other", plane, mat, Affine3A::IDENTITY);
+                let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+                assert!(LaneTracer::new(&rs, &settings).is_none());
+            }
         }
         let rs = extract(&box_with_glass_and_mirror()).unwrap_or_else(|e| panic!("{e}"));
         let clamped = RenderSettings {
@@ -2281,11 +2556,14 @@ pub(crate) mod tests {
                 break v / l;
             }
         };
+        let Geom::Flat(g) = &lt.geometry else {
+            panic!("the scene has a flat tree");
+        };
         for kind in [KIND_DIFFUSE, KIND_GLOSSY, KIND_DIFFUSE_GLASS] {
-            let Some(k) = lt.tris.iter().position(|t| t.kind == kind) else {
+            let Some(k) = g.tris.iter().position(|t| t.kind == kind) else {
                 panic!("no triangle of kind {kind}");
             };
-            let t = lt.tris[k];
+            let t = g.tris[k];
             // The material's BSDF without its texture, as `h.albedo` below.
             let bsdf = lt.bsdfs[t.material as usize];
             let (mut sampled, mut none, mut delta) = (0, 0, 0);
@@ -2307,6 +2585,7 @@ pub(crate) mod tests {
                 };
                 let mut h = Hits {
                     tri: [k as u32; LANES],
+                    inst: [0; LANES],
                     u: Z,
                     v: Z,
                     p: Z3,
@@ -2314,6 +2593,8 @@ pub(crate) mod tests {
                     ns: Z3,
                     magnitude: [t.magnitude; LANES],
                     albedo: Z3,
+                    material: [t.material; LANES],
+                    textured: [t.textured != 0; LANES],
                     diffuse: [kind == KIND_DIFFUSE; LANES],
                     delta: [false; LANES],
                     glass: [false; LANES],
@@ -2342,7 +2623,7 @@ pub(crate) mod tests {
                 let mut dl = DeltaLanes::of(&h);
                 let mut go_on = [false; LANES];
                 let mut stats = RayStats::default();
-                lt.shade_diffuse::<true>(&mut paths, &h, &mine, &mut dl, &mut go_on, &mut stats);
+                lt.shade_diffuse::<true, _>(g, &mut paths, &h, &mine, &mut dl, &mut go_on, &mut stats);
                 if lane_mask(&dl.mine) != 0 {
                     lt.shade_delta(&mut paths, &h, &dl, &mut go_on, &mut stats);
                 }

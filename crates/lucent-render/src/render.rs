@@ -525,14 +525,24 @@ pub(crate) fn trace_rows_lanes(
             if cancel.load(Ordering::Relaxed) {
                 return (RayStats::default(), LaneCounts::default());
             }
-            let kernel = LaneRow {
-                tracer,
-                sampler: &sampler,
-                row: row as u32,
-                pixels,
-                samples: samples.clone(),
+            // One copy of the loop per kind of tree, each its own function.
+            let out = if tracer.on_scene_tree() {
+                lane_isa.run(LaneRow::<true> {
+                    tracer,
+                    sampler: &sampler,
+                    row: row as u32,
+                    pixels,
+                    samples: samples.clone(),
+                })
+            } else {
+                lane_isa.run(LaneRow::<false> {
+                    tracer,
+                    sampler: &sampler,
+                    row: row as u32,
+                    pixels,
+                    samples: samples.clone(),
+                })
             };
-            let out = lane_isa.run(kernel);
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
             out
         })
@@ -542,8 +552,10 @@ pub(crate) fn trace_rows_lanes(
         )
 }
 
-/// The samples of one row of [`trace_rows_lanes`]: one pool of paths.
-struct LaneRow<'r, 'a> {
+/// The samples of one row of [`trace_rows_lanes`]: one pool of paths,
+/// traced by the loop compiled for the two-level tree where `SCENE` is set
+/// (`LaneTracer::on_scene_tree`), else for the flat tree.
+struct LaneRow<'r, 'a, const SCENE: bool> {
     tracer: &'r LaneTracer<'a>,
     sampler: &'r PixelSampler<'a>,
     row: u32,
@@ -551,7 +563,7 @@ struct LaneRow<'r, 'a> {
     samples: Range<u32>,
 }
 
-impl Kernel for LaneRow<'_, '_> {
+impl<const SCENE: bool> Kernel for LaneRow<'_, '_, SCENE> {
     type Output = (RayStats, LaneCounts);
 
     #[inline(always)]
@@ -570,7 +582,7 @@ impl Kernel for LaneRow<'_, '_> {
             let key = keys.get(col).copied().unwrap_or(0);
             self.sampler.path_start_keyed(key, col as u32, row, s)
         };
-        self.tracer.trace(start, &mut out, &mut stats, &mut counts);
+        self.tracer.trace::<SCENE>(start, &mut out, &mut stats, &mut counts);
         for (px, radiance) in self.pixels.iter_mut().zip(out.chunks(n.max(1))) {
             for r in radiance {
                 px.add_sample(*r);
