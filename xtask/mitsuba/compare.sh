@@ -40,6 +40,8 @@
 #      THREADS=0 (Lucent worker threads; 0 = one per CPU; Mitsuba uses every CPU)
 #      LUCENT=path/to/lucent (a binary to time instead of building target/release/lucent)
 #      REF_SPP=2048 (spp of the cached references of the seed and heavy scenes)
+#      RENDER_ARGS="" (more arguments for Lucent's renders: RENDER_ARGS=--lanes
+#      times the lane tracer)
 #
 # Lucent renders each scene file as it stands (the Cornell box: 256x256, max
 # depth 16; seed: 640x360, depth 8; heavy: 256x256, depth 8), writing linear
@@ -70,6 +72,9 @@ lock() { flock /tmp/lucent-bench.lock "$@"; }
 load() { cut -d' ' -f1-3 /proc/loadavg; }
 thread_args=()
 [[ $THREADS != 0 ]] && thread_args=(--threads "$THREADS")
+# More arguments for every Lucent render, split at spaces (RENDER_ARGS=--lanes
+# times the lane tracer).
+read -r -a render_args <<<"${RENDER_ARGS:-}"
 
 # render [PREFIX...] -- STEM SPP SEED: Lucent's render of the Cornell box, EXR + PNG,
 # run under PREFIX (e.g. `lock` or `nice`).
@@ -78,7 +83,7 @@ render() {
   while [[ $1 != -- ]]; do prefix+=("$1"); shift; done
   shift
   "${prefix[@]}" "$LUCENT" render "$SCENE" --size 256x256 --max-depth 16 --integrator path \
-    --spp "$2" --seed "$3" --exr "$1.exr" -o "$1.png" "${thread_args[@]}"
+    --spp "$2" --seed "$3" --exr "$1.exr" -o "$1.png" "${thread_args[@]}" "${render_args[@]}"
 }
 compare() { (cd "$PEER" && "$PY" cornell.py compare --ref "$PEER/out/ref" "$@"); }
 
@@ -171,13 +176,13 @@ case $cmd in
         nice -n 19 "${mts[@]}" --spp "$REF_SPP" --seed 99999 --out "${ref%.exr}" >/dev/null
       fi
     done
-    echo "lucent: $LUCENT ($(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo '?')), $(nproc) CPUs: $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
+    echo "lucent: $LUCENT ${RENDER_ARGS:-} ($(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo '?')), $(nproc) CPUs: $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
     for round in $(seq "$ROUNDS"); do
       for scene in ${SCENES//,/ }; do
         scene_info "$scene"
         stem=$OUT/bench/${scene}_lucent_$round
         before=$(load)
-        line=$(lock "$LUCENT" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}")
+        line=$(lock "$LUCENT" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}" "${render_args[@]}")
         s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
         echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"lucent\",\"spp\":$spp,\"seed\":$round,\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
         stem=$OUT/bench/${scene}_mitsuba_$round
