@@ -2435,29 +2435,34 @@ pub(crate) mod tests {
             for c in 0..3 {
                 bl.conductor[c] = [conductor[c]; LANES];
             }
-            let mut dir = || {
-                let v = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5);
-                LocalDir::new(v)
-            };
-            let mut checked = 0;
-            for _ in 0..20_000 {
-                let (Some(wo), Some(wi)) = (dir(), dir()) else {
-                    continue;
-                };
-                for c in 0..3 {
-                    bl.wo[c][0] = wo.get()[c];
-                }
-                let (f, p) = LaneTracer::eval_local(&bl, diffuse.to_array(), 0, wi.get().to_array());
-                let (f_ref, p_ref) = bsdf.eval_pdf(wo, wi);
-                let close = |a: f32, b: f32| (a - b).abs() <= 2e-5 * b.abs().max(1.0);
-                assert!(close(p, p_ref), "pdf {p} against {p_ref}");
-                for c in 0..3 {
-                    assert!(close(f[c], f_ref[c]), "f {f:?} against {f_ref}");
-                }
-                checked += 1;
-            }
-            assert!(checked > 10_000);
+            assert_lane_eval_is_the_bsdfs(&mut bl, diffuse, &bsdf, &mut rng, 2e-5);
         }
+    }
+
+    /// `LaneTracer::eval_local`'s value and density in lane 0 of `bl` (the
+    /// Lambertian lobe `diffuse` beside `bl`'s other lobe) are within
+    /// relative `tol` of `bsdf.eval_pdf`'s, for 20 000 pairs of random
+    /// directions (those of zero length skipped).
+    fn assert_lane_eval_is_the_bsdfs(bl: &mut BsdfLanes, diffuse: Vec3, bsdf: &Bsdf, rng: &mut Pcg32, tol: f32) {
+        let mut dir = || LocalDir::new(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5);
+        let mut checked = 0;
+        for _ in 0..20_000 {
+            let (Some(wo), Some(wi)) = (dir(), dir()) else {
+                continue;
+            };
+            for c in 0..3 {
+                bl.wo[c][0] = wo.get()[c];
+            }
+            let (f, p) = LaneTracer::eval_local(bl, diffuse.to_array(), 0, wi.get().to_array());
+            let (f_ref, p_ref) = bsdf.eval_pdf(wo, wi);
+            let close = |a: f32, b: f32| (a - b).abs() <= tol * b.abs().max(1.0);
+            assert!(close(p, p_ref), "pdf {p} against {p_ref}");
+            for c in 0..3 {
+                assert!(close(f[c], f_ref[c]), "f {f:?} against {f_ref}");
+            }
+            checked += 1;
+        }
+        assert!(checked > 10_000);
     }
 
     /// The lanes' value and density of a Lambertian-and-dielectric mixture
@@ -2513,25 +2518,7 @@ pub(crate) mod tests {
                 c1: [m.c1; LANES],
             };
             assert_eq!((m.c0, m.c1, m.conductor, m.tint), (c0, c0, [0.0; 3], tint.to_array()));
-            let mut checked = 0;
-            for _ in 0..20_000 {
-                let mut dir = || LocalDir::new(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5);
-                let (Some(wo), Some(wi)) = (dir(), dir()) else {
-                    continue;
-                };
-                for c in 0..3 {
-                    bl.wo[c][0] = wo.get()[c];
-                }
-                let (f, p) = LaneTracer::eval_local(&bl, diffuse.to_array(), 0, wi.get().to_array());
-                let (f_ref, p_ref) = bsdf.eval_pdf(wo, wi);
-                let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
-                assert!(close(p, p_ref), "pdf {p} against {p_ref}");
-                for c in 0..3 {
-                    assert!(close(f[c], f_ref[c]), "f {f:?} against {f_ref}");
-                }
-                checked += 1;
-            }
-            assert!(checked > 10_000);
+            assert_lane_eval_is_the_bsdfs(&mut bl, diffuse, &bsdf, &mut rng, 1e-6);
         }
     }
 
