@@ -2189,6 +2189,17 @@ pub(crate) mod tests {
         sum / (film.width() * film.height()) as f32
     }
 
+    /// The image means of `rs` rendered by the lane tracer (baseline copy)
+    /// and by the scalar tracer, and their relative difference per
+    /// channel, for the image-mean tests.
+    fn lane_and_scalar_means(rs: &RenderScene, settings: &RenderSettings) -> (Vec3, Vec3, Vec3) {
+        let lanes = mean(&lane_film(rs, settings, LaneIsa::Baseline, 0));
+        let mut scalar = Film::new(settings.width, settings.height);
+        crate::render_samples(rs, settings, &mut scalar, 0..settings.spp, &|_| {});
+        let scalar = mean(&scalar);
+        (lanes, scalar, (lanes - scalar).abs() / scalar)
+    }
+
     #[test]
     fn every_copy_of_the_lane_loop_gives_the_same_bits_on_any_thread_count() {
         let [crowded_box, crowded_floor] = instanced_scenes();
@@ -2224,15 +2235,11 @@ pub(crate) mod tests {
             max_depth: 8,
             ..settings(128)
         };
-        let lanes = mean(&lane_film(&rs, &settings, LaneIsa::Baseline, 0));
-        let mut scalar = Film::new(settings.width, settings.height);
-        crate::render_samples(&rs, &settings, &mut scalar, 0..settings.spp, &|_| {});
-        let scalar = mean(&scalar);
+        let (lanes, scalar, rel) = lane_and_scalar_means(&rs, &settings);
         // Measured over seeds 0 to 6: the two means differ by -0.22 % to
         // +0.14 %; a bias of 1 % fails. (With the floor's roughness at 0.1,
         // as in the seed scene, the sun's glint in it made fireflies that
         // moved one tracer's mean by 1.5 % on a seed.)
-        let rel = (lanes - scalar).abs() / scalar;
         assert!(rel.max_element() < 0.01, "lanes {lanes} scalar {scalar}");
     }
 
@@ -2245,15 +2252,11 @@ pub(crate) mod tests {
             max_depth: 8,
             ..settings(128)
         };
-        let lanes = mean(&lane_film(&rs, &settings, LaneIsa::Baseline, 0));
-        let mut scalar = Film::new(settings.width, settings.height);
-        crate::render_samples(&rs, &settings, &mut scalar, 0..settings.spp, &|_| {});
-        let scalar = mean(&scalar);
+        let (lanes, scalar, rel) = lane_and_scalar_means(&rs, &settings);
         // Measured over seeds 0 to 6: the two means differ by -0.29 % to
         // +0.16 %; a point light's value without its squared distance
         // moved them 3 % and fails. (Smaller errors in a light's sample,
         // below this noise, are `lights::tests`' to find.)
-        let rel = (lanes - scalar).abs() / scalar;
         assert!(rel.max_element() < 0.01, "lanes {lanes} scalar {scalar}");
     }
 
@@ -2261,15 +2264,11 @@ pub(crate) mod tests {
     fn the_lane_tracer_renders_the_scalar_tracers_image_within_noise() {
         let rs = extract(&box_with_glass_and_mirror()).unwrap_or_else(|e| panic!("{e}"));
         let settings = settings(128);
-        let lanes = mean(&lane_film(&rs, &settings, LaneIsa::Baseline, 0));
-        let mut scalar = Film::new(settings.width, settings.height);
-        crate::render_samples(&rs, &settings, &mut scalar, 0..settings.spp, &|_| {});
-        let scalar = mean(&scalar);
+        let (lanes, scalar, rel) = lane_and_scalar_means(&rs, &settings);
         // Both estimate the same image. Measured over seeds 0 to 6: the
         // two means differ by -0.25 % to +0.17 % (mean -0.04 %), and each
         // tracer's own means spread over 0.35 %; a bias of 1 % (seven
         // times the differences' spread) fails.
-        let rel = (lanes - scalar).abs() / scalar;
         assert!(rel.max_element() < 0.01, "lanes {lanes} scalar {scalar}");
     }
 
@@ -2287,11 +2286,7 @@ pub(crate) mod tests {
                 ..settings(128)
             };
             assert!(LaneTracer::new(&rs, &settings).is_some_and(|lt| matches!(lt.geometry, Geom::Scene(_))));
-            let lanes = mean(&lane_film(&rs, &settings, LaneIsa::Baseline, 0));
-            let mut scalar = Film::new(settings.width, settings.height);
-            crate::render_samples(&rs, &settings, &mut scalar, 0..settings.spp, &|_| {});
-            let scalar = mean(&scalar);
-            let rel = (lanes - scalar).abs() / scalar;
+            let (lanes, scalar, rel) = lane_and_scalar_means(&rs, &settings);
             // Measured over seeds 0 to 6: the two means differ by -0.21 %
             // to +0.04 % in the box, -0.30 % to +0.25 % on the floor.
             assert!(rel.max_element() < 0.01, "lanes {lanes} scalar {scalar}");
