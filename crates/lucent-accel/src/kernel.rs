@@ -40,7 +40,9 @@
 //! the walk recomputing those addresses at every node and pack.
 #![allow(unsafe_code, reason = "the AVX2 kernel; see the module docs")]
 
+mod avx2_packet;
 mod avx512;
+pub(crate) use avx2_packet::Avx2Lanes;
 pub(crate) use avx512::Avx512;
 
 use crate::mesh_bvh::{LeafTest, PortableLeaf};

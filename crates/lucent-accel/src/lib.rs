@@ -27,7 +27,8 @@
 //! eight-triangle watertight test in AVX2 intrinsics, chosen at run time
 //! where the processor has AVX2, FMA and BMI (a whole query is then compiled for
 //! those features), and the packet walk's sixteen lanes in AVX-512 where
-//! the processor has it, switched by [`MeshBvh::with_vector_kernel`] and
+//! the processor has it, else in AVX2 (two registers per row), switched by
+//! [`MeshBvh::with_vector_kernel`] and
 //! checked bit for bit against the portable code. It holds this crate's
 //! only `unsafe` code.
 //!

@@ -120,9 +120,10 @@ fn pack_prefetch(packs: &[Pack], on: bool) -> Option<(*const u8, usize)> {
 }
 
 /// Where a packet query runs.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub(crate) enum PacketLanes {
     /// Every ray alone, through the single-ray queries.
+    #[default]
     Alone,
     /// The portable lanes (the reference; slow).
     #[cfg_attr(not(test), allow(dead_code, reason = "the reference the tests run"))]
@@ -130,9 +131,47 @@ pub(crate) enum PacketLanes {
     /// The AVX-512 lanes.
     #[cfg(target_arch = "x86_64")]
     Avx512(crate::kernel::Avx512),
+    /// The AVX2 lanes (two registers per row of sixteen).
+    #[cfg(target_arch = "x86_64")]
+    Avx2(crate::kernel::Avx2Lanes),
 }
 
 impl PacketLanes {
+    /// The fastest lanes this processor has: AVX-512, else AVX2, else none
+    /// (every ray alone).
+    pub(crate) fn detect() -> PacketLanes {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if let Some(k) = crate::kernel::Avx512::detect() {
+                return PacketLanes::Avx512(k);
+            }
+            if let Some(k) = crate::kernel::Avx2Lanes::detect() {
+                return PacketLanes::Avx2(k);
+            }
+        }
+        PacketLanes::Alone
+    }
+
+    /// The vector lanes this processor has, fastest first: what the tests
+    /// compare with the portable ones.
+    #[cfg(test)]
+    pub(crate) fn every_vector() -> Vec<PacketLanes> {
+        let mut kernels = Vec::new();
+        #[cfg(target_arch = "x86_64")]
+        {
+            if let Some(k) = crate::kernel::Avx512::detect() {
+                kernels.push(PacketLanes::Avx512(k));
+            }
+            if let Some(k) = crate::kernel::Avx2Lanes::detect() {
+                kernels.push(PacketLanes::Avx2(k));
+            }
+        }
+        if kernels.is_empty() {
+            eprintln!("no AVX2 or AVX-512 here: the portable lanes alone");
+        }
+        kernels
+    }
+
     /// Runs `q` in these lanes (not [`PacketLanes::Alone`], which runs
     /// nothing: the portable lanes then).
     #[inline(always)]
@@ -140,6 +179,8 @@ impl PacketLanes {
         match self {
             #[cfg(target_arch = "x86_64")]
             PacketLanes::Avx512(k) => k.run(q),
+            #[cfg(target_arch = "x86_64")]
+            PacketLanes::Avx2(k) => k.run(q),
             PacketLanes::Alone | PacketLanes::Portable => q.run(Portable16),
         }
     }
@@ -387,10 +428,9 @@ pub struct MeshBvh {
     /// that mesh has since been dropped it names nothing, and costs one
     /// prefetch that fetches nothing useful.
     hit_indices: usize,
-    /// The AVX-512 lanes of the packet walk, where the machine has them
-    /// and the vector kernels are on ([`MeshBvh::intersect_packet`]).
-    #[cfg(target_arch = "x86_64")]
-    packet: Option<crate::kernel::Avx512>,
+    /// The lanes of the packet walk: the fastest the machine has, where
+    /// the vector kernels are on ([`MeshBvh::intersect_packet`]).
+    packet: PacketLanes,
 }
 
 /// The closest-hit query, run through [`MeshBvh::run`]; prefetching
@@ -518,8 +558,7 @@ impl MeshBvh {
             vector: true,
             prefetch,
             hit_indices: mesh.indices().as_ptr() as usize,
-            #[cfg(target_arch = "x86_64")]
-            packet: crate::kernel::Avx512::detect(),
+            packet: PacketLanes::detect(),
         }
     }
 
@@ -546,10 +585,7 @@ impl MeshBvh {
     pub fn with_vector_kernel(mut self, on: bool) -> Self {
         self.wide.set_simd(on);
         self.vector = on;
-        #[cfg(target_arch = "x86_64")]
-        {
-            self.packet = if on { crate::kernel::Avx512::detect() } else { None };
-        }
+        self.packet = if on { PacketLanes::detect() } else { PacketLanes::Alone };
         self
     }
 
@@ -877,11 +913,11 @@ impl MeshBvh {
     /// Rays that start near one another and point the same way (a
     /// pixel's samples, shadow rays towards one light from neighbouring
     /// points) are walked together as a packet on processors with AVX-512
-    /// (`crate::packet`): each node and triangle is then tested against all
-    /// of them at once. Rays whose direction signs or dominant axis differ
-    /// from the others' are walked in groups of their own, or alone where
-    /// their group is too small to pay, as are all of them without AVX-512,
-    /// with the vector kernels off or with Moller-Trumbore.
+    /// or AVX2 (`crate::packet`): each node and triangle is then tested
+    /// against all of them at once. Rays whose direction signs or dominant
+    /// axis differ from the others' are walked in groups of their own, or
+    /// alone where their group is too small to pay, as are all of them
+    /// without AVX2, with the vector kernels off or with Moller-Trumbore.
     ///
     /// ```
     /// use lucent_accel::{BuildParams, MeshBvh, PACKET};
@@ -913,21 +949,19 @@ impl MeshBvh {
     }
 
     /// Whether [`MeshBvh::intersect_packet`] and
-    /// [`MeshBvh::occluded_packet`] walk rays together here (AVX-512, the
-    /// vector kernels on, the watertight test), rather than one at a time.
+    /// [`MeshBvh::occluded_packet`] walk rays together here (AVX-512 or
+    /// AVX2, the vector kernels on, the watertight test), rather than one at
+    /// a time.
     pub fn walks_packets(&self) -> bool {
         !matches!(self.packet_lanes(), PacketLanes::Alone)
     }
 
-    /// The lanes packet queries run in: AVX-512 where the processor has it
-    /// and this tree runs its vector kernels and the watertight test, else
-    /// none (every ray alone).
+    /// The lanes packet queries run in: the fastest the processor has
+    /// (AVX-512, else AVX2) where this tree runs its vector kernels and the
+    /// watertight test, else none (every ray alone).
     fn packet_lanes(&self) -> PacketLanes {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(k) = self.packet
-            && self.test == TriangleTest::Watertight
-        {
-            return PacketLanes::Avx512(k);
+        if self.test == TriangleTest::Watertight {
+            return self.packet;
         }
         PacketLanes::Alone
     }

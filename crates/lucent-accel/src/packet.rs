@@ -35,8 +35,8 @@
 //! The walk is written once, generic over [`Lanes`] (sixteen `f32` and
 //! `u32` lanes and masks of sixteen bits): the portable implementation
 //! here, plain arrays, is the reference; `crate::kernel`'s AVX-512 one is
-//! what runs where the processor has it, and the tests compare them bit
-//! for bit. Without AVX-512, or with the vector kernels off, the packet
+//! what runs where the processor has it, else its AVX2 one, and the tests
+//! compare them bit for bit. Without AVX2, or with the vector kernels off, the packet
 //! queries walk their rays one at a time.
 
 use crate::mesh_bvh::{LANES as PACK_LANES, MeshHit, Pack};
@@ -245,8 +245,9 @@ impl Lanes for Portable16 {
 }
 
 /// A packet query run with lanes picked once for it (the portable ones,
-/// or the AVX-512 ones, through which the whole query is compiled for
-/// AVX-512: `crate::kernel::Avx512::run`).
+/// or the AVX-512 or AVX2 ones, through which the whole query is compiled
+/// for those features: `crate::kernel::Avx512::run`,
+/// `crate::kernel::Avx2Lanes::run`).
 pub(crate) trait PacketQuery {
     /// What the query answers.
     type Output;
@@ -1254,15 +1255,11 @@ mod tests {
 
     /// Every lane's packet answer is the single-ray query's, bit for bit,
     /// in the portable lanes and (where the processor has them) in
-    /// AVX-512, closest and any hit.
+    /// AVX-512 and AVX2, closest and any hit.
     #[test]
     fn packets_find_the_single_ray_hits_bit_for_bit() {
         let mut kernels = vec![PacketLanes::Portable];
-        #[cfg(target_arch = "x86_64")]
-        match crate::kernel::Avx512::detect() {
-            Some(k) => kernels.push(PacketLanes::Avx512(k)),
-            None => eprintln!("no AVX-512 here: the portable lanes alone"),
-        }
+        kernels.extend(PacketLanes::every_vector());
         let mut rng = Pcg32::new(11, 2);
         let packets = packets(&mut rng);
         for (name, mesh) in meshes() {

@@ -112,10 +112,9 @@ pub struct SceneBvh {
     /// `tlas.prim_indices`), which queries walk with the mesh trees' walk
     /// and box test.
     pub(crate) wide: WideBvh,
-    /// The AVX-512 lanes of the packet walk, where the machine has them
+    /// The lanes of the packet walk: the fastest the machine has
     /// ([`SceneBvh::intersect_packet`]).
-    #[cfg(target_arch = "x86_64")]
-    packet: Option<crate::kernel::Avx512>,
+    packet: PacketLanes,
 }
 
 impl SceneBvh {
@@ -164,8 +163,7 @@ impl SceneBvh {
             tlas,
             placed,
             wide,
-            #[cfg(target_arch = "x86_64")]
-            packet: crate::kernel::Avx512::detect(),
+            packet: PacketLanes::detect(),
         }
     }
 
@@ -252,7 +250,7 @@ impl SceneBvh {
     /// answer is [`SceneBvh::intersect`]`(&rays[l], t_max[l])` where bit `l`
     /// of `active` is set, bit for bit, and `None` elsewhere.
     ///
-    /// On processors with AVX-512, rays that start near one another and
+    /// On processors with AVX-512 or AVX2, rays that start near one another and
     /// point the same way (a pixel's camera rays) are walked together
     /// through the instance tree and, moved into each instance they reach,
     /// through its mesh (`crate::scene_packet`), as
@@ -296,20 +294,16 @@ impl SceneBvh {
     }
 
     /// Whether [`SceneBvh::intersect_packet`] and
-    /// [`SceneBvh::occluded_packet`] walk rays together here (AVX-512),
-    /// rather than one at a time.
+    /// [`SceneBvh::occluded_packet`] walk rays together here (AVX-512 or
+    /// AVX2), rather than one at a time.
     pub fn walks_packets(&self) -> bool {
         !matches!(self.packet_lanes(), PacketLanes::Alone)
     }
 
     /// The lanes packet queries run in: AVX-512 where the processor has
-    /// it, else none (every ray alone).
+    /// it, else AVX2, else none (every ray alone).
     fn packet_lanes(&self) -> PacketLanes {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(k) = self.packet {
-            return PacketLanes::Avx512(k);
-        }
-        PacketLanes::Alone
+        self.packet
     }
 
     /// [`SceneBvh::intersect_packet`] in lanes `lanes`.

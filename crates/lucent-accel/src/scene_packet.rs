@@ -508,15 +508,12 @@ mod tests {
 
     /// Every lane's packet answer is the single-ray query's, bit for bit
     /// (t, barycentrics, triangle and instance), in the portable lanes and
-    /// (where the processor has them) in AVX-512, closest and any hit.
+    /// (where the processor has them) in AVX-512 and AVX2, closest and any
+    /// hit.
     #[test]
     fn scene_packets_find_the_single_ray_hits_bit_for_bit() {
         let mut kernels = vec![PacketLanes::Portable];
-        #[cfg(target_arch = "x86_64")]
-        match crate::kernel::Avx512::detect() {
-            Some(k) => kernels.push(PacketLanes::Avx512(k)),
-            None => eprintln!("no AVX-512 here: the portable lanes alone"),
-        }
+        kernels.extend(PacketLanes::every_vector());
         for (name, meshes, instances, extent) in scenes() {
             let scene = SceneBvh::build(meshes, instances, &BuildParams::default());
             let mut rng = Pcg32::new(11, 2);
