@@ -17,7 +17,7 @@
 #       (--spp 2), divided by 4 * 64 * 64 samples (render, film and all);
 #       RENDER_ARGS adds arguments to each render (e.g. RENDER_ARGS=--lanes
 #       counts the lane tracer; under valgrind it runs its AVX2 copy, since
-#       valgrind hides AVX-512, and packet queries walk their rays one by one).
+#       valgrind hides AVX-512, and packet queries run in the AVX2 lanes).
 #
 # env: LUCENT=path/to/lucent, LUCENT_BENCH=path/to/lucent-bench (binaries to
 #      count instead of this checkout's release builds; give an older build's
