@@ -5,14 +5,19 @@
 //! sample `s` of a pixel comes from the stream keyed by (seed, pixel, `s`)
 //! and each pixel adds its samples in index order, so a pixel that reached
 //! `n` samples holds exactly the bytes of an `n`-spp render, whatever the
-//! thread count and whatever the timing.
+//! thread count and whatever the timing. With `settings.lanes` (the path
+//! tracer, a scene the lane tracer takes) both trace their samples through
+//! the lane tracer, as the uniform render then does: a pass's runs of
+//! pixels, or a tile's pixels, are each one pool of paths, and a path's
+//! radiance does not depend on the pool it is traced in.
 //!
 //! **Time budget.** [`render_for`] renders one sample per pixel, then adds
 //! passes of whole samples per pixel, sized from the measured time of the
 //! last passes (so it follows the machine's load as it changes) to take at
 //! most half the time left and an eighth of the budget. Passes start while
 //! any time is left; the one the deadline overtakes is cut at the next
-//! pixel and undone from a copy of the film taken before it, so the film
+//! pixel (in lanes, at the next run of 64 pixels of a row) and undone
+//! from a copy of the film taken before it, so the film
 //! never holds pixels with unequal sample counts. The render therefore
 //! ends at the deadline plus the time to finish one pixel's samples and
 //! restore the copy, whatever one pass costs, once the first sample per
@@ -60,8 +65,9 @@
 //! # Ok::<(), lucent_render::ExtractError>(())
 //! ```
 
-use crate::isa::{Isa, Kernel};
-use crate::render::PixelSampler;
+use crate::isa::{Isa, Kernel, LaneIsa};
+use crate::lane::LaneTracer;
+use crate::render::{PixelSampler, lane_pixels, lane_samples, lane_tracer};
 use crate::{ExactRgb, Film, RayStats, RenderOutput, RenderScene, RenderSettings};
 use lucent_geom::DVec3;
 use rayon::prelude::*;
@@ -91,7 +97,9 @@ pub fn render_for(
     let cap = settings.spp.max(1);
     let mut film = Film::new(settings.width.max(1), settings.height.max(1));
     let sampler = PixelSampler::new(scene, settings, film.width(), film.height());
-    let mut stats = pass(&sampler, &mut film, 0..1, None).unwrap_or_default();
+    let tracer = lane_tracer(scene, settings);
+    let lanes = tracer.as_ref().map(|t| (t, LaneIsa::chosen()));
+    let mut stats = pass(&sampler, lanes, &mut film, 0..1, None).unwrap_or_default();
     progress(1);
     // Seconds per sample per pixel of the last two passes; the pace is the
     // faster of them, so one pass slowed by a passing load spike does not
@@ -114,7 +122,7 @@ pub fn render_for(
         let k = ((pass_s / per_spp) as u32).clamp(1, cap - n);
         backup.clone_from(&film.sum);
         let t = Instant::now();
-        match pass(&sampler, &mut film, n..n + k, Some(deadline)) {
+        match pass(&sampler, lanes, &mut film, n..n + k, Some(deadline)) {
             Some(s) => {
                 stats = stats + s;
                 pace = [pace[1], t.elapsed().as_secs_f64() / f64::from(k)];
@@ -134,11 +142,19 @@ pub fn render_for(
     }
 }
 
-/// Adds `samples` to every pixel of `film`, rows in parallel; gives up at
-/// `deadline`, checked before each pixel, and returns `None` with the film
-/// holding a partial pass (its sample count unchanged).
+/// Pixels of a row that the lane tracer takes as one pool of paths in a
+/// pass of [`render_for`]: the deadline is checked before each such run of
+/// pixels, as the one-path loop checks it before each pixel.
+const LANE_RUN: usize = 64;
+
+/// Adds `samples` to every pixel of `film`, rows in parallel, through the
+/// lane tracer where `lanes` holds one (runs of [`LANE_RUN`] pixels), else
+/// one path at a time; gives up at `deadline`, checked before each pixel
+/// (each run of pixels in lanes), and returns `None` with the film holding
+/// a partial pass (its sample count unchanged).
 fn pass(
     sampler: &PixelSampler<'_>,
+    lanes: Option<(&LaneTracer<'_>, LaneIsa)>,
     film: &mut Film,
     samples: Range<u32>,
     deadline: Option<Instant>,
@@ -152,14 +168,25 @@ fn pass(
         .enumerate()
         .map(|(row, pixels)| {
             let (cut, samples) = (&cut, samples.clone());
-            isa.run(PassRow {
-                sampler,
-                row: row as u32,
-                pixels,
-                samples,
-                deadline,
-                cut,
-            })
+            let Some((tracer, lane_isa)) = lanes else {
+                return isa.run(PassRow {
+                    sampler,
+                    row: row as u32,
+                    pixels,
+                    samples,
+                    deadline,
+                    cut,
+                });
+            };
+            let mut stats = RayStats::default();
+            for (i, run) in pixels.chunks_mut(LANE_RUN).enumerate() {
+                if late(cut, deadline) {
+                    break;
+                }
+                let col0 = (i * LANE_RUN) as u32;
+                stats = stats + lane_pixels(lane_isa, tracer, sampler, row as u32, col0, run, samples.clone()).0;
+            }
+            stats
         })
         .reduce(RayStats::default, |a, b| a + b);
     if cut.load(Ordering::Relaxed) {
@@ -240,17 +267,22 @@ impl Kernel for PassRow<'_, '_> {
     fn run(self) -> RayStats {
         let mut stats = RayStats::default();
         let (cut, deadline) = (self.cut, self.deadline);
-        let stop = || {
-            let late = cut.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d);
-            if late {
-                cut.store(true, Ordering::Relaxed);
-            }
-            late
-        };
+        let stop = || late(cut, deadline);
         self.sampler
             .add_row_samples(self.row, self.pixels, self.samples, &mut stats, &stop);
         stats
     }
+}
+
+/// Whether a pass is to stop: `cut` already set, or `deadline` passed
+/// (which sets `cut`, so the other rows stop too).
+#[inline(always)]
+fn late(cut: &AtomicBool, deadline: Option<Instant>) -> bool {
+    let late = cut.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d);
+    if late {
+        cut.store(true, Ordering::Relaxed);
+    }
+    late
 }
 
 /// One round of a tile ([`Tile::refine`]): the work [`Isa::run`] compiles
@@ -326,9 +358,29 @@ impl Tile {
     }
 
     /// Takes samples `n..next` of every pixel, in the copy of the loop
-    /// `isa` names.
-    fn refine(&mut self, sampler: &PixelSampler<'_>, isa: Isa) -> RayStats {
-        isa.run(Refine { tile: self, sampler })
+    /// `isa` names, or through the lane tracer where `lanes` holds one (the
+    /// tile's pixels as one pool of paths).
+    fn refine(&mut self, sampler: &PixelSampler<'_>, isa: Isa, lanes: Option<(&LaneTracer<'_>, LaneIsa)>) -> RayStats {
+        let Some((tracer, lane_isa)) = lanes else {
+            return isa.run(Refine { tile: self, sampler });
+        };
+        let pixels: Vec<(u32, u32)> = (0..self.pixels() as u32)
+            .map(|i| (self.x0 + i % self.w, self.y0 + i / self.w))
+            .collect();
+        let samples = self.n..self.next;
+        let n = samples.len();
+        let (radiance, stats, _) = lane_samples(lane_isa, tracer, sampler, &pixels, samples);
+        if n > 0 {
+            for ((s, q), values) in self.sum.iter_mut().zip(&mut self.sum_sq).zip(radiance.chunks(n)) {
+                for &v in values {
+                    s.add_sample(v);
+                    let v = v.as_dvec3();
+                    *q += v * v;
+                }
+            }
+        }
+        self.n = self.next;
+        stats
     }
 }
 
@@ -427,6 +479,8 @@ pub fn render_to_error(scene: &RenderScene, settings: &RenderSettings, target: f
     let (width, height) = (settings.width.max(1), settings.height.max(1));
     let max_spp = max_spp.max(1);
     let sampler = PixelSampler::new(scene, settings, width, height);
+    let tracer = lane_tracer(scene, settings);
+    let lanes = tracer.as_ref().map(|t| (t, LaneIsa::chosen()));
     let mut tiles = Vec::new();
     for y0 in (0..height).step_by(TILE as usize) {
         for x0 in (0..width).step_by(TILE as usize) {
@@ -452,7 +506,7 @@ pub fn render_to_error(scene: &RenderScene, settings: &RenderSettings, target: f
         stats = stats
             + tiles
                 .par_iter_mut()
-                .map(|t| t.refine(&sampler, isa))
+                .map(|t| t.refine(&sampler, isa, lanes))
                 .reduce(RayStats::default, |a, b| a + b);
         rounds += 1;
         let (sq, mean) = estimate(&tiles);
@@ -610,6 +664,56 @@ mod tests {
             (0.9..=1.1 + t1).contains(&elapsed) || (elapsed > 1.1 && spp == 1),
             "{elapsed:.3} s, {spp} spp, one spp {t1:.3} s"
         );
+    }
+
+    /// With `lanes` set, a time-budget render and an adaptive one take
+    /// their samples through the lane tracer, and each is still the uniform
+    /// render at its sample counts (that render in lanes too): the same
+    /// bytes, whichever runs of pixels the passes and tiles cut the pool
+    /// into.
+    #[test]
+    fn in_lanes_progressive_renders_are_the_uniform_lane_render() {
+        let rs = sky_scene();
+        let mut settings = path_settings(150, 20);
+        settings.lanes = true;
+        assert!(
+            crate::render::lane_tracer(&rs, &settings).is_some(),
+            "the lanes take the sky scene"
+        );
+        settings.spp = 5;
+        let budget = render_for(&rs, &settings, Duration::from_secs(30), &|_| {});
+        assert_eq!(budget.film.n_samples(), 5);
+        let uniform = render(&rs, &settings, &|_| {});
+        assert_eq!(budget.film, uniform.film);
+        assert_eq!(budget.stats, uniform.stats);
+        let scalar = render(
+            &rs,
+            &RenderSettings {
+                lanes: false,
+                ..settings
+            },
+            &|_| {},
+        );
+        assert_ne!(
+            uniform.film, scalar.film,
+            "the lanes' estimator, not the one-path loop's bytes"
+        );
+        let adaptive = render_to_error(&rs, &settings, 0.0, 24);
+        assert!(adaptive.sample_counts.iter().all(|&n| n == 24));
+        settings.spp = 24;
+        let uniform = render(&rs, &settings, &|_| {});
+        assert_eq!(adaptive.film.to_linear(), uniform.film.to_linear());
+        assert_eq!(adaptive.stats, uniform.stats);
+        // The variance steers the same way: a reachable target in lanes
+        // gives the same counts on one and three threads.
+        let run = |n| match with_threads(n, || render_to_error(&rs, &settings, 0.08, 256)) {
+            Ok(out) => out,
+            Err(e) => panic!("{e}"),
+        };
+        let (one, three) = (run(1), run(3));
+        assert_eq!(one.film, three.film);
+        assert_eq!(one.sample_counts, three.sample_counts);
+        assert!(one.reached_target, "{}", one.estimated_error);
     }
 
     #[test]

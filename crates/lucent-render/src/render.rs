@@ -340,7 +340,7 @@ impl<'a> PixelSampler<'a> {
 
     /// [`PixelSampler::path_start`] with the pixel's key already made.
     #[inline(always)]
-    fn path_start_keyed(&self, key: u64, col: u32, row: u32, s: u32) -> (Ray, Pcg32) {
+    pub(crate) fn path_start_keyed(&self, key: u64, col: u32, row: u32, s: u32) -> (Ray, Pcg32) {
         let mut rng = Pcg32::new(hash_u64_from(key, &[u64::from(s)]), 0);
         let (jx, jy) = (rng.next_f32(), rng.next_f32());
         (self.camera.ray(col as f32 + jx, row as f32 + jy), rng)
@@ -461,10 +461,7 @@ fn trace_rows(
     progress: &(dyn Fn(usize) + Sync),
     cancel: &AtomicBool,
 ) -> RayStats {
-    if matches!(settings.integrator, Integrator::Path)
-        && settings.lanes
-        && let Some(tracer) = LaneTracer::new(scene, settings)
-    {
+    if let Some(tracer) = lane_tracer(scene, settings) {
         let lane_isa = LaneIsa::chosen();
         let (stats, counts) = trace_rows_lanes(lane_isa, &tracer, scene, settings, film, samples, progress, cancel);
         if std::env::var_os("LUCENT_LANES_STATS").is_some() {
@@ -525,24 +522,7 @@ pub(crate) fn trace_rows_lanes(
             if cancel.load(Ordering::Relaxed) {
                 return (RayStats::default(), LaneCounts::default());
             }
-            // One copy of the loop per kind of tree, each its own function.
-            let out = if tracer.on_scene_tree() {
-                lane_isa.run(LaneRow::<true> {
-                    tracer,
-                    sampler: &sampler,
-                    row: row as u32,
-                    pixels,
-                    samples: samples.clone(),
-                })
-            } else {
-                lane_isa.run(LaneRow::<false> {
-                    tracer,
-                    sampler: &sampler,
-                    row: row as u32,
-                    pixels,
-                    samples: samples.clone(),
-                })
-            };
+            let out = lane_pixels(lane_isa, tracer, &sampler, row as u32, 0, pixels, samples.clone());
             progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
             out
         })
@@ -552,6 +532,119 @@ pub(crate) fn trace_rows_lanes(
         )
 }
 
+/// The lane tracer for a render with these settings: where they ask for it
+/// (`settings.lanes`, the path tracer) and it takes the scene
+/// ([`LaneTracer::new`]).
+pub(crate) fn lane_tracer<'a>(scene: &'a RenderScene, settings: &RenderSettings) -> Option<LaneTracer<'a>> {
+    if matches!(settings.integrator, Integrator::Path) && settings.lanes {
+        LaneTracer::new(scene, settings)
+    } else {
+        None
+    }
+}
+
+/// Adds samples `samples` to pixels `col0..col0 + pixels.len()` of row
+/// `row`, through the lane tracer as one pool of paths, in `lane_isa`'s
+/// copy of its loop; each pixel adds its samples in sample order, so a
+/// pixel's sum is the same however its row is split.
+pub(crate) fn lane_pixels(
+    lane_isa: LaneIsa,
+    tracer: &LaneTracer<'_>,
+    sampler: &PixelSampler<'_>,
+    row: u32,
+    col0: u32,
+    pixels: &mut [ExactRgb],
+    samples: Range<u32>,
+) -> (RayStats, LaneCounts) {
+    // One copy of the loop per kind of tree, each its own function.
+    if tracer.on_scene_tree() {
+        lane_isa.run(LaneRow::<true> {
+            tracer,
+            sampler,
+            row,
+            col0,
+            pixels,
+            samples,
+        })
+    } else {
+        lane_isa.run(LaneRow::<false> {
+            tracer,
+            sampler,
+            row,
+            col0,
+            pixels,
+            samples,
+        })
+    }
+}
+
+/// Samples `samples` of each pixel (column, row) of `pixels`, through the
+/// lane tracer as one pool of paths, in `lane_isa`'s copy of its loop:
+/// `radiance[i * samples.len() + j]` is sample `samples.start + j` of pixel
+/// `i` (the sample a uniform render adds there).
+pub(crate) fn lane_samples(
+    lane_isa: LaneIsa,
+    tracer: &LaneTracer<'_>,
+    sampler: &PixelSampler<'_>,
+    pixels: &[(u32, u32)],
+    samples: Range<u32>,
+) -> (Vec<Vec3>, RayStats, LaneCounts) {
+    let mut radiance = vec![Vec3::ZERO; pixels.len() * samples.len()];
+    let (stats, counts) = if tracer.on_scene_tree() {
+        lane_isa.run(LanePixels::<true> {
+            tracer,
+            sampler,
+            pixels,
+            samples,
+            radiance: &mut radiance,
+        })
+    } else {
+        lane_isa.run(LanePixels::<false> {
+            tracer,
+            sampler,
+            pixels,
+            samples,
+            radiance: &mut radiance,
+        })
+    };
+    (radiance, stats, counts)
+}
+
+/// The samples of [`lane_samples`]: one pool of paths, traced by the loop
+/// compiled for the two-level tree where `SCENE` is set.
+struct LanePixels<'r, 'a, const SCENE: bool> {
+    tracer: &'r LaneTracer<'a>,
+    sampler: &'r PixelSampler<'a>,
+    pixels: &'r [(u32, u32)],
+    samples: Range<u32>,
+    radiance: &'r mut [Vec3],
+}
+
+impl<const SCENE: bool> Kernel for LanePixels<'_, '_, SCENE> {
+    type Output = (RayStats, LaneCounts);
+
+    #[inline(always)]
+    fn run(self) -> (RayStats, LaneCounts) {
+        let (mut stats, mut counts) = (RayStats::default(), LaneCounts::default());
+        let n = self.samples.len().max(1);
+        let keys: Vec<u64> = self
+            .pixels
+            .iter()
+            .map(|&(col, row)| self.sampler.pixel_key(col, row))
+            .collect();
+        let first = self.samples.start;
+        let start = |k: usize| {
+            let i = k / n;
+            let (col, row) = self.pixels.get(i).copied().unwrap_or((0, 0));
+            let key = keys.get(i).copied().unwrap_or(0);
+            self.sampler.path_start_keyed(key, col, row, first + (k % n) as u32)
+        };
+        self.tracer
+            .trace::<SCENE>(start, self.radiance, &mut stats, &mut counts);
+        (stats, counts)
+    }
+}
+
 /// The samples of one row of [`trace_rows_lanes`]: one pool of paths,
 /// traced by the loop compiled for the two-level tree where `SCENE` is set
 /// (`LaneTracer::on_scene_tree`), else for the flat tree.
@@ -559,6 +652,8 @@ struct LaneRow<'r, 'a, const SCENE: bool> {
     tracer: &'r LaneTracer<'a>,
     sampler: &'r PixelSampler<'a>,
     row: u32,
+    /// The column of `pixels[0]`.
+    col0: u32,
     pixels: &'r mut [ExactRgb],
     samples: Range<u32>,
 }
@@ -571,8 +666,9 @@ impl<const SCENE: bool> Kernel for LaneRow<'_, '_, SCENE> {
         let (mut stats, mut counts) = (RayStats::default(), LaneCounts::default());
         let n = self.samples.len();
         let row = self.row;
+        let col0 = self.col0;
         let keys: Vec<u64> = (0..self.pixels.len())
-            .map(|col| self.sampler.pixel_key(col as u32, row))
+            .map(|col| self.sampler.pixel_key(col0 + col as u32, row))
             .collect();
         let mut out = vec![Vec3::ZERO; self.pixels.len() * n];
         let first = self.samples.start;
@@ -580,7 +676,7 @@ impl<const SCENE: bool> Kernel for LaneRow<'_, '_, SCENE> {
             let col = k / n.max(1);
             let s = first + (k % n.max(1)) as u32;
             let key = keys.get(col).copied().unwrap_or(0);
-            self.sampler.path_start_keyed(key, col as u32, row, s)
+            self.sampler.path_start_keyed(key, col0 + col as u32, row, s)
         };
         self.tracer.trace::<SCENE>(start, &mut out, &mut stats, &mut counts);
         for (px, radiance) in self.pixels.iter_mut().zip(out.chunks(n.max(1))) {

@@ -155,9 +155,10 @@ pub struct RenderSettings {
     /// Path tracer: shade sixteen paths at a time in SIMD lanes
     /// (`lucent_render`'s lane tracer; AVX-512 or AVX2 where the processor
     /// has them) instead of one at a time. Experimental and off by default:
-    /// it renders the same image within noise, not the same bytes, and
-    /// only plain renders of scenes it supports use it (the others, and
-    /// progressive, AOV and one-pass renders, keep the scalar tracer).
+    /// it renders the same image within noise, not the same bytes. Plain,
+    /// time-budget and error-target renders of scenes it supports use it
+    /// (other scenes, and AOV and one-pass renders, keep the scalar
+    /// tracer).
     pub lanes: bool,
 }
 

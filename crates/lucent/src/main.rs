@@ -161,7 +161,8 @@ struct QualityArgs {
     /// Path tracer, experimental: shade sixteen paths at a time in SIMD
     /// lanes (AVX-512 or AVX2 where the processor has them). The same image
     /// within noise, not the same bytes; scenes it does not support, and
-    /// progressive, AOV and one-pass renders, keep the scalar tracer.
+    /// AOV and one-pass renders, keep the scalar tracer (plain,
+    /// --time-budget and --target-error renders take it).
     /// `--lanes=false` turns it off.
     #[arg(long, value_name = "BOOL", num_args = 0..=1, require_equals = true, default_missing_value = "true")]
     lanes: Option<bool>,
