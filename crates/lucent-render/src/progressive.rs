@@ -580,6 +580,17 @@ mod tests {
         }
     }
 
+    /// [`render_to_error`] on a pool of `threads` workers.
+    fn adaptive_on(
+        threads: usize,
+        rs: &RenderScene,
+        settings: &RenderSettings,
+        target: f64,
+        max_spp: u32,
+    ) -> AdaptiveOutput {
+        with_threads(threads, || render_to_error(rs, settings, target, max_spp)).unwrap_or_else(|e| panic!("{e}"))
+    }
+
     fn path_settings(width: u32, height: u32) -> RenderSettings {
         RenderSettings {
             width,
@@ -706,11 +717,10 @@ mod tests {
         assert_eq!(adaptive.stats, uniform.stats);
         // The variance steers the same way: a reachable target in lanes
         // gives the same counts on one and three threads.
-        let run = |n| match with_threads(n, || render_to_error(&rs, &settings, 0.08, 256)) {
-            Ok(out) => out,
-            Err(e) => panic!("{e}"),
-        };
-        let (one, three) = (run(1), run(3));
+        let (one, three) = (
+            adaptive_on(1, &rs, &settings, 0.08, 256),
+            adaptive_on(3, &rs, &settings, 0.08, 256),
+        );
         assert_eq!(one.film, three.film);
         assert_eq!(one.sample_counts, three.sample_counts);
         assert!(one.reached_target, "{}", one.estimated_error);
@@ -746,11 +756,10 @@ mod tests {
     fn adaptive_sampling_is_the_same_on_one_and_three_threads() {
         let rs = sky_scene();
         let settings = path_settings(40, 24);
-        let run = |n| match with_threads(n, || render_to_error(&rs, &settings, 0.08, 512)) {
-            Ok(out) => out,
-            Err(e) => panic!("{e}"),
-        };
-        let (one, three) = (run(1), run(3));
+        let (one, three) = (
+            adaptive_on(1, &rs, &settings, 0.08, 512),
+            adaptive_on(3, &rs, &settings, 0.08, 512),
+        );
         assert_eq!(one.film, three.film);
         assert_eq!(one.sample_counts, three.sample_counts);
         assert_eq!(one.estimated_error.to_bits(), three.estimated_error.to_bits());

@@ -556,26 +556,17 @@ pub(crate) fn lane_pixels(
     pixels: &mut [ExactRgb],
     samples: Range<u32>,
 ) -> (RayStats, LaneCounts) {
-    // One copy of the loop per kind of tree, each its own function.
-    if tracer.on_scene_tree() {
-        lane_isa.run(LaneRow::<true> {
-            tracer,
-            sampler,
-            row,
-            col0,
-            pixels,
-            samples,
-        })
-    } else {
-        lane_isa.run(LaneRow::<false> {
-            tracer,
-            sampler,
-            row,
-            col0,
-            pixels,
-            samples,
-        })
+    let n = samples.len();
+    let at: Vec<(u32, u32)> = (0..pixels.len() as u32).map(|c| (col0 + c, row)).collect();
+    let (radiance, stats, counts) = lane_samples(lane_isa, tracer, sampler, &at, samples);
+    if n > 0 {
+        for (px, values) in pixels.iter_mut().zip(radiance.chunks(n)) {
+            for &v in values {
+                px.add_sample(v);
+            }
+        }
     }
+    (stats, counts)
 }
 
 /// Samples `samples` of each pixel (column, row) of `pixels`, through the
@@ -589,23 +580,15 @@ pub(crate) fn lane_samples(
     pixels: &[(u32, u32)],
     samples: Range<u32>,
 ) -> (Vec<Vec3>, RayStats, LaneCounts) {
+    // One copy of the loop per kind of tree, each its own function.
+    fn pool<const SCENE: bool>(lane_isa: LaneIsa, paths: LanePixels<'_, '_, SCENE>) -> (RayStats, LaneCounts) {
+        lane_isa.run(paths)
+    }
     let mut radiance = vec![Vec3::ZERO; pixels.len() * samples.len()];
-    let (stats, counts) = if tracer.on_scene_tree() {
-        lane_isa.run(LanePixels::<true> {
-            tracer,
-            sampler,
-            pixels,
-            samples,
-            radiance: &mut radiance,
-        })
-    } else {
-        lane_isa.run(LanePixels::<false> {
-            tracer,
-            sampler,
-            pixels,
-            samples,
-            radiance: &mut radiance,
-        })
+    let out = &mut radiance;
+    let (stats, counts) = match tracer.on_scene_tree() {
+        true => pool::<true>(lane_isa, LanePixels::of(tracer, sampler, pixels, samples, out)),
+        false => pool::<false>(lane_isa, LanePixels::of(tracer, sampler, pixels, samples, out)),
     };
     (radiance, stats, counts)
 }
@@ -618,6 +601,26 @@ struct LanePixels<'r, 'a, const SCENE: bool> {
     pixels: &'r [(u32, u32)],
     samples: Range<u32>,
     radiance: &'r mut [Vec3],
+}
+
+impl<'r, 'a, const SCENE: bool> LanePixels<'r, 'a, SCENE> {
+    /// The paths of `samples` of each of `pixels`, their radiance into
+    /// `radiance`.
+    fn of(
+        tracer: &'r LaneTracer<'a>,
+        sampler: &'r PixelSampler<'a>,
+        pixels: &'r [(u32, u32)],
+        samples: Range<u32>,
+        radiance: &'r mut [Vec3],
+    ) -> Self {
+        LanePixels {
+            tracer,
+            sampler,
+            pixels,
+            samples,
+            radiance,
+        }
+    }
 }
 
 impl<const SCENE: bool> Kernel for LanePixels<'_, '_, SCENE> {
@@ -641,49 +644,6 @@ impl<const SCENE: bool> Kernel for LanePixels<'_, '_, SCENE> {
         };
         self.tracer
             .trace::<SCENE>(start, self.radiance, &mut stats, &mut counts);
-        (stats, counts)
-    }
-}
-
-/// The samples of one row of [`trace_rows_lanes`]: one pool of paths,
-/// traced by the loop compiled for the two-level tree where `SCENE` is set
-/// (`LaneTracer::on_scene_tree`), else for the flat tree.
-struct LaneRow<'r, 'a, const SCENE: bool> {
-    tracer: &'r LaneTracer<'a>,
-    sampler: &'r PixelSampler<'a>,
-    row: u32,
-    /// The column of `pixels[0]`.
-    col0: u32,
-    pixels: &'r mut [ExactRgb],
-    samples: Range<u32>,
-}
-
-impl<const SCENE: bool> Kernel for LaneRow<'_, '_, SCENE> {
-    type Output = (RayStats, LaneCounts);
-
-    #[inline(always)]
-    fn run(self) -> (RayStats, LaneCounts) {
-        let (mut stats, mut counts) = (RayStats::default(), LaneCounts::default());
-        let n = self.samples.len();
-        let row = self.row;
-        let col0 = self.col0;
-        let keys: Vec<u64> = (0..self.pixels.len())
-            .map(|col| self.sampler.pixel_key(col0 + col as u32, row))
-            .collect();
-        let mut out = vec![Vec3::ZERO; self.pixels.len() * n];
-        let first = self.samples.start;
-        let start = |k: usize| {
-            let col = k / n.max(1);
-            let s = first + (k % n.max(1)) as u32;
-            let key = keys.get(col).copied().unwrap_or(0);
-            self.sampler.path_start_keyed(key, col0 + col as u32, row, s)
-        };
-        self.tracer.trace::<SCENE>(start, &mut out, &mut stats, &mut counts);
-        for (px, radiance) in self.pixels.iter_mut().zip(out.chunks(n.max(1))) {
-            for r in radiance {
-                px.add_sample(*r);
-            }
-        }
         (stats, counts)
     }
 }
