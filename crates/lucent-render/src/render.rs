@@ -580,15 +580,13 @@ pub(crate) fn lane_samples(
     pixels: &[(u32, u32)],
     samples: Range<u32>,
 ) -> (Vec<Vec3>, RayStats, LaneCounts) {
-    // One copy of the loop per kind of tree, each its own function.
-    fn pool<const SCENE: bool>(lane_isa: LaneIsa, paths: LanePixels<'_, '_, SCENE>) -> (RayStats, LaneCounts) {
-        lane_isa.run(paths)
-    }
     let mut radiance = vec![Vec3::ZERO; pixels.len() * samples.len()];
     let out = &mut radiance;
-    let (stats, counts) = match tracer.on_scene_tree() {
-        true => pool::<true>(lane_isa, LanePixels::of(tracer, sampler, pixels, samples, out)),
-        false => pool::<false>(lane_isa, LanePixels::of(tracer, sampler, pixels, samples, out)),
+    // One copy of the loop per kind of tree, each its own function.
+    let (stats, counts) = if tracer.on_scene_tree() {
+        lane_isa.run(LanePixels::<true>::of(tracer, sampler, pixels, samples, out))
+    } else {
+        lane_isa.run(LanePixels::<false>::of(tracer, sampler, pixels, samples, out))
     };
     (radiance, stats, counts)
 }
