@@ -27,6 +27,10 @@
 //!   f64 fallback for edge functions that come out exactly zero runs lane by
 //!   lane, out of line.
 //!
+//! Its submodules hold the packet walk's sixteen lanes (`crate::packet`),
+//! in AVX-512 (`avx512`) and in AVX2 (`avx2_packet`), each entered through
+//! a proof of its features made the same way.
+//!
 //! Rust never contracts separate multiplies and adds into FMAs, so code
 //! compiled here rounds as the portable build does.
 //!

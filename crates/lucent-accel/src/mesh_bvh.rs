@@ -137,35 +137,34 @@ pub(crate) enum PacketLanes {
 }
 
 impl PacketLanes {
+    /// The vector lanes this processor has, fastest first (AVX-512, AVX2):
+    /// `None` where it lacks them.
+    fn vector() -> [Option<PacketLanes>; 2] {
+        #[cfg(target_arch = "x86_64")]
+        let lanes = [
+            crate::kernel::Avx512::detect().map(PacketLanes::Avx512),
+            crate::kernel::Avx2Lanes::detect().map(PacketLanes::Avx2),
+        ];
+        #[cfg(not(target_arch = "x86_64"))]
+        let lanes = [None, None];
+        lanes
+    }
+
     /// The fastest lanes this processor has: AVX-512, else AVX2, else none
     /// (every ray alone).
     pub(crate) fn detect() -> PacketLanes {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if let Some(k) = crate::kernel::Avx512::detect() {
-                return PacketLanes::Avx512(k);
-            }
-            if let Some(k) = crate::kernel::Avx2Lanes::detect() {
-                return PacketLanes::Avx2(k);
-            }
-        }
-        PacketLanes::Alone
+        Self::vector()
+            .into_iter()
+            .flatten()
+            .next()
+            .unwrap_or(PacketLanes::Alone)
     }
 
-    /// The vector lanes this processor has, fastest first: what the tests
-    /// compare with the portable ones.
+    /// Every vector lane set this processor has, fastest first: what the
+    /// tests compare with the portable ones.
     #[cfg(test)]
     pub(crate) fn every_vector() -> Vec<PacketLanes> {
-        let mut kernels = Vec::new();
-        #[cfg(target_arch = "x86_64")]
-        {
-            if let Some(k) = crate::kernel::Avx512::detect() {
-                kernels.push(PacketLanes::Avx512(k));
-            }
-            if let Some(k) = crate::kernel::Avx2Lanes::detect() {
-                kernels.push(PacketLanes::Avx2(k));
-            }
-        }
+        let kernels: Vec<PacketLanes> = Self::vector().into_iter().flatten().collect();
         if kernels.is_empty() {
             eprintln!("no AVX2 or AVX-512 here: the portable lanes alone");
         }
