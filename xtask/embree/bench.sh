@@ -9,6 +9,10 @@
 #        at a time, i.e. sixteen neighbouring pixels of a camera's rays; the
 #        random rays go back to the single-ray walk), as "lucent_packets"
 #        MESHES="bun_zipper dragon"  SETS="close primary random"  REPS=5
+#        (or MESHES="cornell cornell_walls cornell_spheres" SETS=inside: the
+#        Cornell box, its six large wall and light triangles alone and its
+#        two spheres alone, with 1M rays from inside the box, the path
+#        tracer's kind of ray there; see cornell_rays.py)
 #        ASSETS=$ROOT/../shared/assets (the meshes; set it in a worktree elsewhere)
 #
 # Needs the ray and hit files made by xtask/embree/compare.sh. Each round runs,
@@ -27,7 +31,13 @@ REPS=${REPS:-5}
 MESHES=${MESHES:-"bun_zipper dragon"}
 SETS=${SETS:-"close primary random"}
 ASSETS=${ASSETS:-$ROOT/../shared/assets}
-declare -A MESH=([bun_zipper]=$ASSETS/stanford-bunny/bun_zipper.ply [dragon]=$ASSETS/stanford-dragon-100k/dragon.ply)
+declare -A MESH=([bun_zipper]=$ASSETS/stanford-bunny/bun_zipper.ply [dragon]=$ASSETS/stanford-dragon-100k/dragon.ply
+  [cornell]=$PEER/out/cornell.ply [cornell_walls]=$PEER/out/cornell_walls.ply
+  [cornell_spheres]=$PEER/out/cornell_spheres.ply)
+if [[ " $MESHES " == *" cornell"* ]]; then
+  # The Cornell box's meshes and rays inside it (SETS=inside), made afresh.
+  "$PEER/.venv/bin/python" "$ROOT/xtask/embree/cornell_rays.py" "$PEER/out" >/dev/null
+fi
 cargo build --release -q -p lucent-bench --manifest-path "$ROOT/Cargo.toml"
 LUCENT=$ROOT/target/release/lucent-bench
 mkdir -p "$OUT"
