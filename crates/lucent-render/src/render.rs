@@ -584,32 +584,72 @@ pub(crate) fn lane_samples(
     let out = &mut radiance;
     // One copy of the loop per kind of tree, each its own function.
     let (stats, counts) = if tracer.on_scene_tree() {
-        lane_isa.run(LanePixels::<true>::of(tracer, sampler, pixels, samples, out))
+        lane_isa.run(LanePixels::<true, false>::of(
+            tracer,
+            sampler,
+            pixels,
+            samples,
+            out,
+            &mut [],
+        ))
     } else {
-        lane_isa.run(LanePixels::<false>::of(tracer, sampler, pixels, samples, out))
+        lane_isa.run(LanePixels::<false, false>::of(
+            tracer,
+            sampler,
+            pixels,
+            samples,
+            out,
+            &mut [],
+        ))
     };
     (radiance, stats, counts)
 }
 
+/// [`lane_samples`] that also records each sample's feature buffers
+/// (`aovs`, indexed as `radiance`), with the radiance [`lane_samples`]
+/// gives.
+pub(crate) fn lane_samples_aov(
+    lane_isa: LaneIsa,
+    tracer: &LaneTracer<'_>,
+    sampler: &PixelSampler<'_>,
+    pixels: &[(u32, u32)],
+    samples: Range<u32>,
+) -> (Vec<Vec3>, Vec<AovSample>, RayStats, LaneCounts) {
+    let n = pixels.len() * samples.len();
+    let (mut radiance, mut aovs) = (vec![Vec3::ZERO; n], vec![AovSample::default(); n]);
+    let (out, rec) = (&mut radiance, &mut aovs);
+    let (stats, counts) = if tracer.on_scene_tree() {
+        lane_isa.run(LanePixels::<true, true>::of(tracer, sampler, pixels, samples, out, rec))
+    } else {
+        lane_isa.run(LanePixels::<false, true>::of(
+            tracer, sampler, pixels, samples, out, rec,
+        ))
+    };
+    (radiance, aovs, stats, counts)
+}
+
 /// The samples of [`lane_samples`]: one pool of paths, traced by the loop
-/// compiled for the two-level tree where `SCENE` is set.
-struct LanePixels<'r, 'a, const SCENE: bool> {
+/// compiled for the two-level tree where `SCENE` is set, recording their
+/// feature buffers where `AOV` is.
+struct LanePixels<'r, 'a, const SCENE: bool, const AOV: bool> {
     tracer: &'r LaneTracer<'a>,
     sampler: &'r PixelSampler<'a>,
     pixels: &'r [(u32, u32)],
     samples: Range<u32>,
     radiance: &'r mut [Vec3],
+    aovs: &'r mut [AovSample],
 }
 
-impl<'r, 'a, const SCENE: bool> LanePixels<'r, 'a, SCENE> {
+impl<'r, 'a, const SCENE: bool, const AOV: bool> LanePixels<'r, 'a, SCENE, AOV> {
     /// The paths of `samples` of each of `pixels`, their radiance into
-    /// `radiance`.
+    /// `radiance` and, with `AOV`, their feature buffers into `aovs`.
     fn of(
         tracer: &'r LaneTracer<'a>,
         sampler: &'r PixelSampler<'a>,
         pixels: &'r [(u32, u32)],
         samples: Range<u32>,
         radiance: &'r mut [Vec3],
+        aovs: &'r mut [AovSample],
     ) -> Self {
         LanePixels {
             tracer,
@@ -617,11 +657,12 @@ impl<'r, 'a, const SCENE: bool> LanePixels<'r, 'a, SCENE> {
             pixels,
             samples,
             radiance,
+            aovs,
         }
     }
 }
 
-impl<const SCENE: bool> Kernel for LanePixels<'_, '_, SCENE> {
+impl<const SCENE: bool, const AOV: bool> Kernel for LanePixels<'_, '_, SCENE, AOV> {
     type Output = (RayStats, LaneCounts);
 
     #[inline(always)]
@@ -641,7 +682,7 @@ impl<const SCENE: bool> Kernel for LanePixels<'_, '_, SCENE> {
             self.sampler.path_start_keyed(key, col, row, first + (k % n) as u32)
         };
         self.tracer
-            .trace::<SCENE>(start, self.radiance, &mut stats, &mut counts);
+            .trace_aov::<SCENE, AOV>(start, self.radiance, self.aovs, &mut stats, &mut counts);
         (stats, counts)
     }
 }
@@ -703,6 +744,8 @@ fn trace_rows_aov(
     }
     let width = film.width() as usize;
     let rows_done = AtomicUsize::new(0);
+    let lanes = lane_tracer(scene, settings);
+    let lane_isa = LaneIsa::chosen();
     let stats = film
         .sum
         .par_chunks_mut(width.max(1))
@@ -713,6 +756,14 @@ fn trace_rows_aov(
         .zip(aovs.delta.par_chunks_mut(width.max(1)))
         .enumerate()
         .map(|(row, rows)| {
+            if let Some(tracer) = &lanes {
+                if cancel.load(Ordering::Relaxed) {
+                    return RayStats::default();
+                }
+                let stats = lane_row_aov(lane_isa, tracer, &sampler, row as u32, rows, samples.clone());
+                progress(rows_done.fetch_add(1, Ordering::Relaxed) + 1);
+                return stats;
+            }
             let kernel = AovRow {
                 sampler: &sampler,
                 row: row as u32,
@@ -736,6 +787,39 @@ type AovRows<'r> = (
     ),
     &'r mut [DeltaLightSums],
 );
+
+/// One row of [`trace_rows_aov`] through the lane tracer: the row's
+/// samples one pool of paths ([`lane_samples_aov`]), each pixel's beauty
+/// and feature buffers added in sample order.
+fn lane_row_aov(
+    lane_isa: LaneIsa,
+    tracer: &LaneTracer<'_>,
+    sampler: &PixelSampler<'_>,
+    row: u32,
+    rows: AovRows<'_>,
+    samples: Range<u32>,
+) -> RayStats {
+    let (((((pixels, albedo), normal), depth), specular), delta) = rows;
+    let n = samples.len();
+    let at: Vec<(u32, u32)> = (0..pixels.len() as u32).map(|c| (c, row)).collect();
+    let (radiance, aov, stats, _) = lane_samples_aov(lane_isa, tracer, sampler, &at, samples);
+    if n > 0 {
+        let aov_pixels = albedo
+            .iter_mut()
+            .zip(normal.iter_mut())
+            .zip(depth.iter_mut())
+            .zip(specular.iter_mut())
+            .zip(delta.iter_mut());
+        let values = radiance.chunks(n).zip(aov.chunks(n));
+        for ((px, ((((a, nm), d), sp), dl)), (values, aovs)) in pixels.iter_mut().zip(aov_pixels).zip(values) {
+            for (&v, s) in values.iter().zip(aovs) {
+                px.add_sample(v);
+                s.add_to(a, nm, d, sp, dl);
+            }
+        }
+    }
+    stats
+}
 
 /// The samples of one row of [`trace_rows_aov`], as [`Row`] is of
 /// [`trace_rows`].

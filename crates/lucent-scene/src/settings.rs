@@ -155,10 +155,9 @@ pub struct RenderSettings {
     /// Path tracer: shade sixteen paths at a time in SIMD lanes
     /// (`lucent_render`'s lane tracer; AVX-512 or AVX2 where the processor
     /// has them) instead of one at a time. Experimental and off by default:
-    /// it renders the same image within noise, not the same bytes. Plain,
-    /// time-budget and error-target renders of scenes it supports use it
-    /// (other scenes, and AOV and one-pass renders, keep the scalar
-    /// tracer).
+    /// it renders the same image within noise, not the same bytes. Every
+    /// render of a scene it supports uses it (plain, AOV, one-pass,
+    /// time-budget and error-target); other scenes keep the scalar tracer.
     pub lanes: bool,
 }
 

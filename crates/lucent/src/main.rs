@@ -160,9 +160,9 @@ struct QualityArgs {
     smooth: Option<bool>,
     /// Path tracer, experimental: shade sixteen paths at a time in SIMD
     /// lanes (AVX-512 or AVX2 where the processor has them). The same image
-    /// within noise, not the same bytes; scenes it does not support, and
-    /// AOV and one-pass renders, keep the scalar tracer (plain,
-    /// --time-budget and --target-error renders take it).
+    /// within noise, not the same bytes; scenes it does not support keep
+    /// the scalar tracer (every render of the others takes it: plain,
+    /// --aov, --denoise, --time-budget, --target-error, one-pass).
     /// `--lanes=false` turns it off.
     #[arg(long, value_name = "BOOL", num_args = 0..=1, require_equals = true, default_missing_value = "true")]
     lanes: Option<bool>,
