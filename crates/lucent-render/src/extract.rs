@@ -5,6 +5,7 @@
 
 use crate::envlight::EnvLight;
 use crate::flat::{FlatBvh, MAX_FLAT_TRIANGLES};
+use crate::lane::LaneTables;
 use crate::lights::{LightSet, emits};
 use lucent_accel::{BuildParams, BuildQuality, Instance, MeshBvh, SceneBvh};
 use lucent_geom::{Affine3A, Mat3A, TriMesh, Vec3};
@@ -224,6 +225,9 @@ pub struct RenderScene {
     /// time [`RenderScene::flat_bvh`] asks for it (only the path tracer
     /// does, so Whitted renders and the viewer's start do not pay for it).
     flat_bvh: OnceLock<Option<FlatBvh>>,
+    /// The lane tracer's records of this scene, built the first time a
+    /// render takes the lanes ([`RenderScene::lane_tables`]).
+    lane_tables: OnceLock<Option<LaneTables>>,
 }
 
 /// Why a scene could not be extracted.
@@ -364,6 +368,7 @@ pub fn extract_with(scene: &Scene, options: &ExtractOptions) -> Result<RenderSce
         build: params,
         allow_flat: options.flat_bvh,
         flat_bvh: OnceLock::new(),
+        lane_tables: OnceLock::new(),
     })
 }
 
@@ -541,6 +546,14 @@ impl RenderScene {
         self.flat_bvh
             .get_or_init(|| FlatBvh::build(&self.meshes, &self.instances, &self.build, MAX_FLAT_TRIANGLES))
             .as_ref()
+    }
+
+    /// The lane tracer's records of this scene (`crate::lane`), built on
+    /// the first call and kept: they depend on the scene alone, so each
+    /// render (each of the viewer's frames) does not rebuild them. `None`
+    /// where the lanes cannot name every triangle.
+    pub(crate) fn lane_tables(&self) -> Option<&LaneTables> {
+        self.lane_tables.get_or_init(|| LaneTables::build(self)).as_ref()
     }
 
     /// Triangles over all instances.

@@ -108,7 +108,7 @@ use std::f32::consts::{FRAC_1_PI, TAU};
 mod instanced;
 mod lights;
 
-use instanced::SceneGeometry;
+use instanced::{SceneGeometry, SceneTables};
 use lights::{LaneLights, Sampled};
 
 /// The lanes set in `b`, one bit each.
@@ -364,10 +364,40 @@ trait Geometry {
 struct FlatGeometry<'a> {
     flat: &'a FlatBvh,
     /// Per flattened triangle of `flat`.
-    tris: Vec<Tri>,
+    tris: &'a [Tri],
     /// Per flattened triangle, its corners' texture coordinates, or empty
     /// ([`Geometry::uvs`]).
-    uvs: Vec<[f32; 6]>,
+    uvs: &'a [[f32; 6]],
+}
+
+/// The lane tracer's per-triangle records of one scene, which depend on
+/// the scene alone: built the first time a render takes the lanes
+/// (`RenderScene::lane_tables`) and kept for every render after (the
+/// viewer renders a frame of the same scene many times a second).
+#[derive(Clone, Debug)]
+pub(crate) struct LaneTables(Tables);
+
+/// The records of [`LaneTables`]: the flat tree's, or the two-level
+/// tree's where the scene has no flat one.
+#[derive(Clone, Debug)]
+enum Tables {
+    Flat { tris: Vec<Tri>, uvs: Vec<[f32; 6]> },
+    Scene(SceneTables),
+}
+
+impl LaneTables {
+    /// The records of `scene`; `None` where one cannot be named (the lane
+    /// tracer then turns the scene down).
+    pub(crate) fn build(scene: &RenderScene) -> Option<LaneTables> {
+        let bsdfs: Vec<Bsdf> = scene.materials.iter().map(|m| m.bsdf_at(None, None)).collect();
+        Some(LaneTables(match scene.flat_bvh() {
+            Some(flat) => {
+                let (tris, uvs) = LaneTracer::flat_records(scene, flat, &bsdfs)?;
+                Tables::Flat { tris, uvs }
+            }
+            None => Tables::Scene(SceneTables::build(scene, &bsdfs)?),
+        }))
+    }
 }
 
 impl Geometry for FlatGeometry<'_> {
@@ -415,7 +445,7 @@ impl Geometry for FlatGeometry<'_> {
 
     #[inline(always)]
     fn interact(&self, h: &mut Hits, i: usize) -> (u32, u32) {
-        let tris = &self.tris[..];
+        let tris = self.tris;
         let t = &tris[(h.tri[i] as usize).min(tris.len().saturating_sub(1))];
         let (u, v) = (h.u[i], h.v[i]);
         let w = 1.0 - u - v;
@@ -442,7 +472,7 @@ impl Geometry for FlatGeometry<'_> {
 
     #[inline(always)]
     fn uvs(&self) -> &[[f32; 6]] {
-        &self.uvs
+        self.uvs
     }
 }
 
@@ -714,9 +744,13 @@ impl<'a> LaneTracer<'a> {
         }
         let bsdfs: Vec<Bsdf> = scene.materials.iter().map(|m| m.bsdf_at(None, None)).collect();
         let mixtures = bsdfs.iter().map(Mixture::of).collect();
-        let geometry = match scene.flat_bvh() {
-            Some(flat) => Geom::Flat(Self::flat_geometry(scene, flat, &bsdfs)?),
-            None => Geom::Scene(SceneGeometry::new(scene, &bsdfs)?),
+        let geometry = match &scene.lane_tables()?.0 {
+            Tables::Flat { tris, uvs } => Geom::Flat(FlatGeometry {
+                flat: scene.flat_bvh()?,
+                tris,
+                uvs,
+            }),
+            Tables::Scene(tables) => Geom::Scene(SceneGeometry::of(scene, tables)),
         };
         Some(Self {
             scene,
@@ -736,8 +770,9 @@ impl<'a> LaneTracer<'a> {
     }
 
     /// The flat tree's records: one per flattened triangle, in render
-    /// space; `None` where one cannot be named.
-    fn flat_geometry<'f>(scene: &RenderScene, flat: &'f FlatBvh, bsdfs: &[Bsdf]) -> Option<FlatGeometry<'f>> {
+    /// space, and their texture coordinates (empty without a texture);
+    /// `None` where one cannot be named.
+    fn flat_records(scene: &RenderScene, flat: &FlatBvh, bsdfs: &[Bsdf]) -> Option<(Vec<Tri>, Vec<[f32; 6]>)> {
         let any_texture = scene.materials.iter().any(|m| m.diffuse_map.is_some());
         let mut tris = Vec::with_capacity(flat.owners().len());
         let mut uvs = Vec::with_capacity(if any_texture { flat.owners().len() } else { 0 });
@@ -755,7 +790,7 @@ impl<'a> LaneTracer<'a> {
         if tris.is_empty() {
             return None;
         }
-        Some(FlatGeometry { flat, tris, uvs })
+        Some((tris, uvs))
     }
 
     /// The texture coordinates of triangle `prim` of `instance`'s corners
@@ -2519,7 +2554,11 @@ pub(crate) mod tests {
     fn lane_and_scalar_means(rs: &RenderScene, settings: &RenderSettings) -> (Vec3, Vec3, Vec3) {
         let lanes = mean(&lane_film(rs, settings, LaneIsa::Baseline, 0));
         let mut scalar = Film::new(settings.width, settings.height);
-        crate::render_samples(rs, settings, &mut scalar, 0..settings.spp, &|_| {});
+        let scalar_settings = RenderSettings {
+            lanes: false,
+            ..*settings
+        };
+        crate::render_samples(rs, &scalar_settings, &mut scalar, 0..settings.spp, &|_| {});
         let scalar = mean(&scalar);
         (lanes, scalar, (lanes - scalar).abs() / scalar)
     }

@@ -73,20 +73,41 @@ pub(super) struct Inst {
 pub(super) struct SceneGeometry<'a> {
     bvh: &'a SceneBvh,
     /// Every mesh's triangles, each mesh from its base.
-    tris: Vec<MeshTri>,
+    tris: &'a [MeshTri],
     /// Per instance of the scene (the tree's instances, in order).
-    insts: Vec<Inst>,
+    insts: &'a [Inst],
     /// Per record of `tris`, its corners' texture coordinates where some
     /// instance is textured; empty where none is.
+    uvs: &'a [[f32; 6]],
+}
+
+/// The records a [`SceneGeometry`] reads, built once per scene
+/// (`RenderScene::lane_tables`).
+#[derive(Clone, Debug)]
+pub(crate) struct SceneTables {
+    tris: Vec<MeshTri>,
+    insts: Vec<Inst>,
     uvs: Vec<[f32; 6]>,
 }
 
 impl<'a> SceneGeometry<'a> {
+    /// The geometry of `scene` over its records `tables`.
+    pub(super) fn of(scene: &'a RenderScene, tables: &'a SceneTables) -> Self {
+        SceneGeometry {
+            bvh: &scene.bvh,
+            tris: &tables.tris,
+            insts: &tables.insts,
+            uvs: &tables.uvs,
+        }
+    }
+}
+
+impl SceneTables {
     /// The records of `scene`'s meshes and instances (`bsdfs`: per
     /// material, its untextured BSDF); `None` for a scene whose tree and
     /// instances disagree, a mesh or an emitter that cannot be named, or no
     /// triangle at all.
-    pub(super) fn new(scene: &'a RenderScene, bsdfs: &[Bsdf]) -> Option<Self> {
+    pub(super) fn build(scene: &RenderScene, bsdfs: &[Bsdf]) -> Option<Self> {
         let bvh = &scene.bvh;
         if bvh.instances().len() != scene.instances.len() {
             return None;
@@ -178,7 +199,7 @@ impl<'a> SceneGeometry<'a> {
         if insts.is_empty() {
             return None;
         }
-        Some(SceneGeometry { bvh, tris, insts, uvs })
+        Some(SceneTables { tris, insts, uvs })
     }
 }
 
@@ -257,7 +278,7 @@ impl Geometry for SceneGeometry<'_> {
 
     #[inline(always)]
     fn interact(&self, h: &mut Hits, i: usize) -> (u32, u32) {
-        let (tris, insts) = (&self.tris[..], &self.insts[..]);
+        let (tris, insts) = (self.tris, self.insts);
         let t = &tris[(h.tri[i] as usize).min(tris.len().saturating_sub(1))];
         let inst = &insts[(h.inst[i] as usize).min(insts.len().saturating_sub(1))];
         let (u, v) = (h.u[i], h.v[i]);
@@ -314,7 +335,7 @@ impl Geometry for SceneGeometry<'_> {
 
     #[inline(always)]
     fn uvs(&self) -> &[[f32; 6]] {
-        &self.uvs
+        self.uvs
     }
 }
 
@@ -338,9 +359,10 @@ mod tests {
         for scene in instanced_scenes() {
             let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
             let bsdfs: Vec<Bsdf> = rs.materials.iter().map(|m| m.bsdf_at(None, None)).collect();
-            let Some(g) = SceneGeometry::new(&rs, &bsdfs) else {
+            let Some(tables) = SceneTables::build(&rs, &bsdfs) else {
                 panic!("the two-level tree's records");
             };
+            let g = SceneGeometry::of(&rs, &tables);
             let mut rng = Pcg32::new(3, 1);
             let mut emitting = 0;
             for (k, inst) in rs.instances.iter().enumerate() {
