@@ -15,9 +15,10 @@
 #   xtask/cachegrind/counts.sh samples [SCENES]    (default "cornell,seed,heavy")
 #       `lucent render` of each scene at 64x64 path traced: (--spp 6) minus
 #       (--spp 2), divided by 4 * 64 * 64 samples (render, film and all);
-#       RENDER_ARGS adds arguments to each render (e.g. RENDER_ARGS=--lanes
-#       counts the lane tracer; under valgrind it runs its AVX2 copy, since
-#       valgrind hides AVX-512, and packet queries run in the AVX2 lanes).
+#       RENDER_ARGS adds arguments to each render (the lane tracer, the
+#       default, runs its AVX2 copy under valgrind, which hides AVX-512, and
+#       packet queries run in the AVX2 lanes; RENDER_ARGS=--lanes=false
+#       counts the scalar tracer).
 #
 # env: LUCENT=path/to/lucent, LUCENT_BENCH=path/to/lucent-bench (binaries to
 #      count instead of this checkout's release builds; give an older build's

@@ -40,8 +40,8 @@
 #      THREADS=0 (Lucent worker threads; 0 = one per CPU; Mitsuba uses every CPU)
 #      LUCENT=path/to/lucent (a binary to time instead of building target/release/lucent)
 #      REF_SPP=2048 (spp of the cached references of the seed and heavy scenes)
-#      RENDER_ARGS="" (more arguments for Lucent's renders: RENDER_ARGS=--lanes
-#      times the lane tracer)
+#      RENDER_ARGS="" (more arguments for Lucent's renders: the lane tracer is
+#      the default; RENDER_ARGS=--lanes=false times the scalar tracer)
 #
 # Lucent renders each scene file as it stands (the Cornell box: 256x256, max
 # depth 16; seed: 640x360, depth 8; heavy: 256x256, depth 8), writing linear

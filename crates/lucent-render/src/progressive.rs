@@ -591,6 +591,8 @@ mod tests {
         with_threads(threads, || render_to_error(rs, settings, target, max_spp)).unwrap_or_else(|e| panic!("{e}"))
     }
 
+    /// The scalar tracer's settings (the lanes' progressive renders have
+    /// `in_lanes_progressive_renders_are_the_uniform_lane_render`).
     fn path_settings(width: u32, height: u32) -> RenderSettings {
         RenderSettings {
             width,
@@ -598,6 +600,7 @@ mod tests {
             integrator: Integrator::Path,
             max_depth: 3,
             seed: 7,
+            lanes: false,
             ..RenderSettings::default()
         }
     }

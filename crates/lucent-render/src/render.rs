@@ -922,10 +922,13 @@ mod tests {
                 };
                 let rs = extract_with(&scene, &options).unwrap_or_else(|e| panic!("{e}"));
                 assert_eq!(rs.flat_bvh().is_some(), flat_bvh);
+                // The scalar tracer's loops (the lane tracer's AOV loop
+                // is checked against its plain one in `lane::tests`).
                 let settings = RenderSettings {
                     width: 24,
                     height: 16,
                     integrator: Integrator::Path,
+                    lanes: false,
                     ..RenderSettings::default()
                 };
                 let (plain, film, _) = render_in(Isa::detect(), &rs, &settings);
@@ -964,10 +967,13 @@ mod tests {
                 Err(e) => panic!("{e}"),
             };
             for integrator in [Integrator::Path, Integrator::Whitted] {
+                // The scalar tracer's copies (the lane tracer's are
+                // compared in `lane::tests`).
                 let settings = RenderSettings {
                     width: 20,
                     height: 12,
                     integrator,
+                    lanes: false,
                     ..RenderSettings::default()
                 };
                 let (plain, film, aovs) = render_in(Isa::baseline(), &rs, &settings);

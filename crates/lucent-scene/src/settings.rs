@@ -154,10 +154,12 @@ pub struct RenderSettings {
     pub smooth: bool,
     /// Path tracer: shade sixteen paths at a time in SIMD lanes
     /// (`lucent_render`'s lane tracer; AVX-512 or AVX2 where the processor
-    /// has them) instead of one at a time. Experimental and off by default:
-    /// it renders the same image within noise, not the same bytes. Every
-    /// render of a scene it supports uses it (plain, AOV, one-pass,
-    /// time-budget and error-target); other scenes keep the scalar tracer.
+    /// has them) instead of one at a time; on by default. It renders the
+    /// scalar tracer's image within noise, not its bytes, and every copy
+    /// (AVX-512, AVX2, plain code) the same bytes. Every render of a scene
+    /// it supports uses it (plain, AOV, one-pass, time-budget and
+    /// error-target); other scenes keep the scalar tracer, which `false`
+    /// asks for everywhere.
     pub lanes: bool,
 }
 
@@ -189,7 +191,7 @@ impl Default for RenderSettings {
             free_delta_bounces: 0,
             lighting_scale: 1,
             smooth: false,
-            lanes: false,
+            lanes: true,
         }
     }
 }
@@ -255,8 +257,8 @@ pub struct RenderOverrides {
     /// Smooth the reflected light with the edge-aware filter (path
     /// tracer).
     pub smooth: Option<bool>,
-    /// Shade sixteen paths at a time in SIMD lanes (path tracer;
-    /// experimental).
+    /// Shade sixteen paths at a time in SIMD lanes (path tracer; on by
+    /// default, `false` for the scalar tracer).
     pub lanes: Option<bool>,
 }
 
@@ -344,7 +346,7 @@ mod tests {
             free_delta_bounces: Some(9),
             lighting_scale: Some(10),
             smooth: Some(true),
-            lanes: Some(true),
+            lanes: Some(false),
         };
         all.apply(&mut s);
         let want = RenderSettings {
@@ -363,7 +365,7 @@ mod tests {
             free_delta_bounces: 9,
             lighting_scale: 10,
             smooth: true,
-            lanes: true,
+            lanes: false,
         };
         assert_eq!(s, want, "every field of RenderOverrides reaches RenderSettings");
     }

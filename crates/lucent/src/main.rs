@@ -158,12 +158,12 @@ struct QualityArgs {
     /// turns it off. With --denoise, the denoiser filters instead.
     #[arg(long, value_name = "BOOL", num_args = 0..=1, require_equals = true, default_missing_value = "true")]
     smooth: Option<bool>,
-    /// Path tracer, experimental: shade sixteen paths at a time in SIMD
-    /// lanes (AVX-512 or AVX2 where the processor has them). The same image
-    /// within noise, not the same bytes; scenes it does not support keep
-    /// the scalar tracer (every render of the others takes it: plain,
-    /// --aov, --denoise, --time-budget, --target-error, one-pass).
-    /// `--lanes=false` turns it off.
+    /// Path tracer: shade sixteen paths at a time in SIMD lanes (AVX-512 or
+    /// AVX2 where the processor has them), the default. The scalar tracer's
+    /// image within noise, not its bytes; scenes the lanes do not support
+    /// keep the scalar tracer (every render of the others takes the lanes:
+    /// plain, --aov, --denoise, --time-budget, --target-error, one-pass).
+    /// `--lanes=false` asks for the scalar tracer (one path at a time).
     #[arg(long, value_name = "BOOL", num_args = 0..=1, require_equals = true, default_missing_value = "true")]
     lanes: Option<bool>,
 }

@@ -143,10 +143,11 @@ fn explicit_flags_override_the_preset() {
     let q = quality_of(&["render", "--smooth", "s.toml", "-o", "x.png"]);
     assert_eq!(q.smooth, Some(true));
     assert!(parse(&["view", "--smooth=maybe"]).is_err());
-    // `--lanes` works the same way, and reaches the settings.
+    // `--lanes` works the same way, and reaches the settings; the lanes
+    // are on unless asked off.
     assert!(scene(&quality_of(&["render", "--lanes", "s.toml", "-o", "x.png"])).lanes);
     assert!(!scene(&quality_of(&["render", "--lanes=false", "s.toml", "-o", "x.png"])).lanes);
-    assert!(!scene(&quality_of(&["render", "s.toml", "-o", "x.png"])).lanes);
+    assert!(scene(&quality_of(&["render", "s.toml", "-o", "x.png"])).lanes);
     assert!(parse(&["render", "--lanes=sometimes", "s.toml", "-o", "x.png"]).is_err());
 }
 

@@ -21,6 +21,16 @@ fn settings(max_depth: u32, spp: u32) -> RenderSettings {
     }
 }
 
+/// [`settings`] for the scalar tracer (`lanes` false) or the lane tracer:
+/// the film-level tests below check both, which must agree with the same
+/// closed-form answers.
+fn settings_in(lanes: bool, max_depth: u32, spp: u32) -> RenderSettings {
+    RenderSettings {
+        lanes,
+        ..settings(max_depth, spp)
+    }
+}
+
 fn mean_and_spread(film: &Film) -> (Vec3, f32) {
     let px = film.to_linear();
     let n = px.len() as f32;
@@ -36,63 +46,75 @@ fn render_path(scene: &Scene, s: &RenderSettings) -> Film {
 
 #[test]
 fn max_depth_counts_segments_from_the_camera() {
-    let scene = fixtures::glowing_box(1.0, 1.0);
-    // 0: no segment at all; 1: the emitters seen directly, exactly.
-    let black = render_path(&scene, &settings(0, 2));
-    assert_eq!(mean_and_spread(&black), (Vec3::ZERO, 0.0));
-    let direct = render_path(&scene, &settings(1, 2));
-    assert_eq!(mean_and_spread(&direct), (Vec3::ONE, 0.0));
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        let scene = fixtures::glowing_box(1.0, 1.0);
+        // 0: no segment at all; 1: the emitters seen directly, exactly.
+        let black = render_path(&scene, &settings(0, 2));
+        assert_eq!(mean_and_spread(&black), (Vec3::ZERO, 0.0));
+        let direct = render_path(&scene, &settings(1, 2));
+        assert_eq!(mean_and_spread(&direct), (Vec3::ONE, 0.0));
+    }
 }
 
 #[test]
 fn a_white_furnace_with_glowing_walls_collects_one_emission_per_segment() {
-    // Albedo 1 and emission 1 everywhere: a path of at most D segments sees
-    // the emission once per vertex, so every pixel converges to D exactly,
-    // whatever mix of light and BSDF sampling found it (the MIS weights and
-    // both densities must agree for that). Roulette starts at the fifth
-    // vertex, so D = 7 checks it too.
-    for (depth, spp, tol) in [(2u32, 64u32, 0.02f32), (3, 64, 0.03), (7, 256, 0.05)] {
-        let film = render_path(&fixtures::glowing_box(1.0, 1.0), &settings(depth, spp));
-        let (mean, _) = mean_and_spread(&film);
-        let want = depth as f32;
-        assert!(
-            (mean - Vec3::splat(want)).abs().max_element() < tol * want,
-            "max_depth {depth}: mean {mean}, want {want}"
-        );
-        for p in film.to_linear() {
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        // Albedo 1 and emission 1 everywhere: a path of at most D segments sees
+        // the emission once per vertex, so every pixel converges to D exactly,
+        // whatever mix of light and BSDF sampling found it (the MIS weights and
+        // both densities must agree for that). Roulette starts at the fifth
+        // vertex, so D = 7 checks it too.
+        for (depth, spp, tol) in [(2u32, 64u32, 0.02f32), (3, 64, 0.03), (7, 256, 0.05)] {
+            let film = render_path(&fixtures::glowing_box(1.0, 1.0), &settings(depth, spp));
+            let (mean, _) = mean_and_spread(&film);
+            let want = depth as f32;
             assert!(
-                (p - Vec3::splat(want)).abs().max_element() < 0.25 * want,
-                "depth {depth}: pixel {p}"
+                (mean - Vec3::splat(want)).abs().max_element() < tol * want,
+                "max_depth {depth}: mean {mean}, want {want}"
             );
+            for p in film.to_linear() {
+                assert!(
+                    (p - Vec3::splat(want)).abs().max_element() < 0.25 * want,
+                    "depth {depth}: pixel {p}"
+                );
+            }
         }
     }
 }
 
 #[test]
 fn a_grey_furnace_converges_to_the_geometric_series() {
-    // Albedo 1/2, emission 1: L = 1 + 1/2 + 1/4 + ... = 2 with unlimited
-    // depth (64 segments here, roulette doing the rest).
-    let film = render_path(&fixtures::glowing_box(0.5, 1.0), &settings(64, 128));
-    let (mean, _) = mean_and_spread(&film);
-    assert!((mean - Vec3::splat(2.0)).abs().max_element() < 0.02, "{mean}");
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        // Albedo 1/2, emission 1: L = 1 + 1/2 + 1/4 + ... = 2 with unlimited
+        // depth (64 segments here, roulette doing the rest).
+        let film = render_path(&fixtures::glowing_box(0.5, 1.0), &settings(64, 128));
+        let (mean, _) = mean_and_spread(&film);
+        assert!((mean - Vec3::splat(2.0)).abs().max_element() < 0.02, "{mean}");
+    }
 }
 
 #[test]
 fn a_white_object_under_a_uniform_sky_disappears() {
-    // The classic furnace: albedo 1 under background 1 reflects exactly
-    // what it receives, so the whole image is 1 (flat normals: a convex
-    // object sends every bounce straight back to the sky).
-    let scene = fixtures::furnace_sphere(Environment {
-        background: Vec3::ONE,
-        ..fixtures::dark()
-    });
-    // The sky is a light sampled beside the BSDF (MIS), so single paths
-    // vary; their mean does not.
-    let film = render_path(&scene, &settings(16, 64));
-    let (mean, _) = mean_and_spread(&film);
-    assert!((mean - Vec3::ONE).abs().max_element() < 0.01, "{mean}");
-    for p in film.to_linear() {
-        assert!((p - Vec3::ONE).abs().max_element() < 0.15, "{p}");
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        // The classic furnace: albedo 1 under background 1 reflects exactly
+        // what it receives, so the whole image is 1 (flat normals: a convex
+        // object sends every bounce straight back to the sky).
+        let scene = fixtures::furnace_sphere(Environment {
+            background: Vec3::ONE,
+            ..fixtures::dark()
+        });
+        // The sky is a light sampled beside the BSDF (MIS), so single paths
+        // vary; their mean does not.
+        let film = render_path(&scene, &settings(16, 64));
+        let (mean, _) = mean_and_spread(&film);
+        assert!((mean - Vec3::ONE).abs().max_element() < 0.01, "{mean}");
+        for p in film.to_linear() {
+            assert!((p - Vec3::ONE).abs().max_element() < 0.15, "{p}");
+        }
     }
 }
 
@@ -110,12 +132,15 @@ fn uniform_map_environment() -> Environment {
 
 #[test]
 fn a_white_sphere_inside_a_uniform_map_renders_as_the_map() {
-    let scene = fixtures::furnace_sphere(uniform_map_environment());
-    let film = render_path(&scene, &settings(16, 64));
-    let (mean, _) = mean_and_spread(&film);
-    assert!((mean - Vec3::splat(1.4)).abs().max_element() < 0.014, "{mean}");
-    for p in film.to_linear() {
-        assert!(p.is_finite() && (p - Vec3::splat(1.4)).abs().max_element() < 0.2, "{p}");
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        let scene = fixtures::furnace_sphere(uniform_map_environment());
+        let film = render_path(&scene, &settings(16, 64));
+        let (mean, _) = mean_and_spread(&film);
+        assert!((mean - Vec3::splat(1.4)).abs().max_element() < 0.014, "{mean}");
+        for p in film.to_linear() {
+            assert!(p.is_finite() && (p - Vec3::splat(1.4)).abs().max_element() < 0.2, "{p}");
+        }
     }
 }
 
@@ -158,17 +183,20 @@ fn a_diffuse_plane_under_a_half_sky_reflects_its_albedo() {
 
 #[test]
 fn an_all_black_map_renders_black_without_sampling_it() {
-    let map = lucent_shading::EnvironmentMap::new(4, 2, vec![Vec3::ZERO; 8]).unwrap_or_else(|e| panic!("{e}"));
-    let mut scene = fixtures::glowing_box(0.5, 0.0);
-    scene.environment = Environment {
-        map: Some(std::sync::Arc::new(map)),
-        background: Vec3::ONE,
-        ..fixtures::dark()
-    };
-    let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
-    assert!(rs.light_set.is_empty() && rs.light_set.environment().is_none());
-    let film = render(&rs, &settings(8, 2), &|_| {}).film;
-    assert!(film.to_linear().iter().all(|p| *p == Vec3::ZERO));
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        let map = lucent_shading::EnvironmentMap::new(4, 2, vec![Vec3::ZERO; 8]).unwrap_or_else(|e| panic!("{e}"));
+        let mut scene = fixtures::glowing_box(0.5, 0.0);
+        scene.environment = Environment {
+            map: Some(std::sync::Arc::new(map)),
+            background: Vec3::ONE,
+            ..fixtures::dark()
+        };
+        let rs = extract(&scene).unwrap_or_else(|e| panic!("{e}"));
+        assert!(rs.light_set.is_empty() && rs.light_set.environment().is_none());
+        let film = render(&rs, &settings(8, 2), &|_| {}).film;
+        assert!(film.to_linear().iter().all(|p| *p == Vec3::ZERO));
+    }
 }
 
 /// A large diffuse floor (albedo `kd`) at y = 0 lit by `light`.
@@ -210,12 +238,15 @@ fn point_and_directional_lights_give_lambert_direct_light() {
 
 #[test]
 fn one_and_two_threads_give_the_same_bytes() {
-    let scene = fixtures::glowing_box(0.8, 1.0);
-    let s = settings(8, 3);
-    let one = with_threads(1, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
-    let two = with_threads(2, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(one, two);
-    assert_eq!(one.stats().n_non_finite, 0);
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        let scene = fixtures::glowing_box(0.8, 1.0);
+        let s = settings(8, 3);
+        let one = with_threads(1, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
+        let two = with_threads(2, || render_path(&scene, &s)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(one, two);
+        assert_eq!(one.stats().n_non_finite, 0);
+    }
 }
 
 /// [`fixtures::mirror_under_ceiling`], extracted.
@@ -288,28 +319,31 @@ fn aovs_record_the_first_diffuse_surface_through_a_mirror_and_leave_radiance_alo
 
 #[test]
 fn aov_buffers_do_not_depend_on_the_thread_count_and_leave_the_beauty_alone() {
-    let rs = mirror_under_ceiling();
-    let s = settings(6, 3);
-    let run = |threads| {
-        with_threads(threads, || {
-            let mut film = Film::new(s.width, s.height);
-            let mut aovs = crate::aov::AovFilm::new(s.width, s.height);
-            crate::render_samples_aov(&rs, &s, &mut film, &mut aovs, 0..3, &|_| {});
-            (film, aovs)
-        })
-        .unwrap_or_else(|e| panic!("{e}"))
-    };
-    let (film1, aov1) = run(1);
-    let (film2, aov2) = run(2);
-    assert_eq!(film1, film2);
-    assert_eq!(aov1, aov2);
-    assert_eq!(aov1.n_samples(), 3);
-    let plain = with_threads(2, || render(&rs, &s, &|_| {}).film).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(film1, plain, "recording AOVs changes no radiance");
-    let img = aov1.images();
-    assert!(img.depth.iter().all(|d| *d > 0.0));
-    assert!(img.depth.iter().any(|d| d.is_finite()));
-    assert!(img.albedo.iter().all(|a| (0.0..=1.0).contains(a)));
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        let rs = mirror_under_ceiling();
+        let s = settings(6, 3);
+        let run = |threads| {
+            with_threads(threads, || {
+                let mut film = Film::new(s.width, s.height);
+                let mut aovs = crate::aov::AovFilm::new(s.width, s.height);
+                crate::render_samples_aov(&rs, &s, &mut film, &mut aovs, 0..3, &|_| {});
+                (film, aovs)
+            })
+            .unwrap_or_else(|e| panic!("{e}"))
+        };
+        let (film1, aov1) = run(1);
+        let (film2, aov2) = run(2);
+        assert_eq!(film1, film2);
+        assert_eq!(aov1, aov2);
+        assert_eq!(aov1.n_samples(), 3);
+        let plain = with_threads(2, || render(&rs, &s, &|_| {}).film).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(film1, plain, "recording AOVs changes no radiance");
+        let img = aov1.images();
+        assert!(img.depth.iter().all(|d| *d > 0.0));
+        assert!(img.depth.iter().any(|d| d.is_finite()));
+        assert!(img.albedo.iter().all(|a| (0.0..=1.0).contains(a)));
+    }
 }
 
 #[test]
@@ -343,27 +377,30 @@ fn free_delta_bounces_let_a_short_path_see_past_a_mirror() {
 
 #[test]
 fn clamp_indirect_caps_only_light_that_bounced() {
-    let rs = extract(&fixtures::glowing_box(1.0, 1.0)).unwrap_or_else(|e| panic!("{e}"));
-    let film = |depth: u32, clamp: f32| {
-        let s = RenderSettings {
-            clamp_indirect: clamp,
-            ..settings(depth, 16)
+    for lanes in [false, true] {
+        let settings = |d: u32, n: u32| settings_in(lanes, d, n);
+        let rs = extract(&fixtures::glowing_box(1.0, 1.0)).unwrap_or_else(|e| panic!("{e}"));
+        let film = |depth: u32, clamp: f32| {
+            let s = RenderSettings {
+                clamp_indirect: clamp,
+                ..settings(depth, 16)
+            };
+            render(&rs, &s, &|_| {}).film
         };
-        render(&rs, &s, &|_| {}).film
-    };
-    // No clamp, or one no contribution reaches: the same bytes.
-    assert_eq!(film(4, 0.0), film(4, 1e9));
-    // Depth 2 is emission seen directly plus direct light: nothing to clamp.
-    assert_eq!(film(2, 0.0), film(2, 0.01));
-    // Depth 3 adds one bounce of indirect light, worth 1 in this furnace
-    // (mean 3); capped at 0.05 per contribution, at most two per sample
-    // (emission found after two bounces, light sampled at the second
-    // surface), the mean stays near the direct part's 2.
-    let (full, _) = mean_and_spread(&film(3, 0.0));
-    let (capped, _) = mean_and_spread(&film(3, 0.05));
-    assert!((full - Vec3::splat(3.0)).abs().max_element() < 0.1, "{full}");
-    assert!(capped.max_element() <= 2.0 + 2.0 * 0.05 + 0.05, "{capped}");
-    assert!(capped.min_element() > 1.9, "{capped}");
+        // No clamp, or one no contribution reaches: the same bytes.
+        assert_eq!(film(4, 0.0), film(4, 1e9));
+        // Depth 2 is emission seen directly plus direct light: nothing to clamp.
+        assert_eq!(film(2, 0.0), film(2, 0.01));
+        // Depth 3 adds one bounce of indirect light, worth 1 in this furnace
+        // (mean 3); capped at 0.05 per contribution, at most two per sample
+        // (emission found after two bounces, light sampled at the second
+        // surface), the mean stays near the direct part's 2.
+        let (full, _) = mean_and_spread(&film(3, 0.0));
+        let (capped, _) = mean_and_spread(&film(3, 0.05));
+        assert!((full - Vec3::splat(3.0)).abs().max_element() < 0.1, "{full}");
+        assert!(capped.max_element() <= 2.0 + 2.0 * 0.05 + 0.05, "{capped}");
+        assert!(capped.min_element() > 1.9, "{capped}");
+    }
 }
 
 /// `PathTracer::trace_batch` gives every path of a batch the radiance,
