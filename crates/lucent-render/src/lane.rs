@@ -575,15 +575,34 @@ struct Hits {
     diffuse_glass: Lb,
     /// The seven numbers of the vertex.
     rnd: [Lf; 7],
-    /// For AOV renders: the light a delta light's sample added at the
-    /// vertex (zero elsewhere), and the vertex's bounce where its BSDF
-    /// sample succeeded: the sample's weight, density and whether a delta
-    /// lobe gave it.
+}
+
+/// What an AOV render's recorders need of a step's shading, lane by lane:
+/// the light a delta light's sample added at the vertex (zero elsewhere),
+/// and the vertex's bounce where its BSDF sample succeeded (the sample's
+/// weight, density and whether a delta lobe gave it). Kept apart from
+/// [`Hits`], which the shading only reads: the plain loop never writes
+/// these.
+struct BounceLanes {
     nee_delta: L3,
     bounced: Lb,
-    b_weight: L3,
-    b_pdf: Lf,
-    b_delta: Lb,
+    weight: L3,
+    pdf: Lf,
+    delta: Lb,
+}
+
+impl BounceLanes {
+    /// Nothing added, no lane bounced.
+    #[inline(always)]
+    fn none() -> Self {
+        BounceLanes {
+            nee_delta: Z3,
+            bounced: [false; LANES],
+            weight: Z3,
+            pdf: Z,
+            delta: [false; LANES],
+        }
+    }
 }
 
 impl Hits {
@@ -611,11 +630,6 @@ impl Hits {
             glossy: [false; LANES],
             diffuse_glass: [false; LANES],
             rnd: [Z; 7],
-            nee_delta: Z3,
-            bounced: [false; LANES],
-            b_weight: Z3,
-            b_pdf: Z,
-            b_delta: [false; LANES],
         }
     }
 }
@@ -953,10 +967,7 @@ impl<'a> LaneTracer<'a> {
             // scene at once ends there and the lane takes the next.
             let mut live = 0u64;
             h.tri = [NONE; LANES];
-            if AOV {
-                h.nee_delta = Z3;
-                h.bounced = [false; LANES];
-            }
+            let mut bl = BounceLanes::none();
             let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
             let mut held = 0u16;
             for i in 0..LANES {
@@ -1111,20 +1122,23 @@ impl<'a> LaneTracer<'a> {
                 for i in 0..LANES {
                     mine[i] = h.diffuse[i] || h.glossy[i] || h.diffuse_glass[i];
                 }
-                self.shade_diffuse::<true, AOV, G>(geometry, &mut paths, &mut h, &mine, &mut dl, &mut go_on, stats);
+                self.shade_diffuse::<true, AOV, G>(
+                    geometry, &mut paths, &h, &mine, &mut dl, &mut go_on, &mut bl, stats,
+                );
             } else if n_diffuse > 0 {
-                let mine = h.diffuse;
-                self.shade_diffuse::<false, AOV, G>(geometry, &mut paths, &mut h, &mine, &mut dl, &mut go_on, stats);
+                self.shade_diffuse::<false, AOV, G>(
+                    geometry, &mut paths, &h, &h.diffuse, &mut dl, &mut go_on, &mut bl, stats,
+                );
             }
             // Mirrors and glass, and the mixtures' dielectric lobes.
             if lane_mask(&dl.mine) != 0 {
-                self.shade_delta::<AOV>(&mut paths, &mut h, &dl, &mut go_on, stats);
+                self.shade_delta::<AOV>(&mut paths, &h, &dl, &mut go_on, &mut bl, stats);
             }
             // 6. Every other BSDF, one lane at a time.
             if n_scalar > 0 {
                 for i in 0..LANES {
                     if h.scalar[i] {
-                        go_on[i] = self.scalar_vertex::<G, AOV>(geometry, &mut paths, &mut h, i, stats);
+                        go_on[i] = self.scalar_vertex::<G, AOV>(geometry, &mut paths, &h, i, &mut bl, stats);
                     }
                 }
             }
@@ -1135,11 +1149,11 @@ impl<'a> LaneTracer<'a> {
                     }
                     let get = |a: &L3| Vec3::new(a[0][i], a[1][i], a[2][i]);
                     if rec.rec[i].at_guide() {
-                        rec.sample[i].delta_lights_sampled += get(&h.nee_delta);
+                        rec.sample[i].delta_lights_sampled += get(&bl.nee_delta);
                     }
-                    if h.bounced[i] {
+                    if bl.bounced[i] {
                         let rad = get(&paths.rad);
-                        rec.rec[i].bounce(get(&h.b_weight), h.b_pdf[i], h.b_delta[i], rad);
+                        rec.rec[i].bounce(get(&bl.weight), bl.pdf[i], bl.delta[i], rad);
                     }
                 }
             }
@@ -1418,10 +1432,11 @@ impl<'a> LaneTracer<'a> {
         &self,
         geometry: &T,
         paths: &mut Paths,
-        h: &mut Hits,
+        h: &Hits,
         mine: &Lb,
         dl: &mut DeltaLanes,
         go_on: &mut Lb,
+        bounces: &mut BounceLanes,
         stats: &mut RayStats,
     ) {
         // The frame (`Frame::from_normal`), `wo` in it, the light sample,
@@ -1598,7 +1613,7 @@ impl<'a> LaneTracer<'a> {
             }
             if AOV {
                 for c in 0..3 {
-                    h.nee_delta[c][i] = if visible[i] && delta_light[i] {
+                    bounces.nee_delta[c][i] = if visible[i] && delta_light[i] {
                         light[c][i] * k
                     } else {
                         0.0
@@ -1624,11 +1639,11 @@ impl<'a> LaneTracer<'a> {
                 weight = [gw[0][i], gw[1][i], gw[2][i]];
             }
             if AOV && mine[i] {
-                h.bounced[i] = ok;
-                h.b_pdf[i] = pdf;
-                h.b_delta[i] = false;
+                bounces.bounced[i] = ok;
+                bounces.pdf[i] = pdf;
+                bounces.delta[i] = false;
                 for c in 0..3 {
-                    h.b_weight[c][i] = weight[c];
+                    bounces.weight[c][i] = weight[c];
                 }
             }
             let mut m = 0.0f32;
@@ -1915,9 +1930,10 @@ impl<'a> LaneTracer<'a> {
     fn shade_delta<const AOV: bool>(
         &self,
         paths: &mut Paths,
-        h: &mut Hits,
+        h: &Hits,
         dl: &DeltaLanes,
         go_on: &mut Lb,
+        bounces: &mut BounceLanes,
         stats: &mut RayStats,
     ) {
         let mut refracted = 0u64;
@@ -1962,8 +1978,8 @@ impl<'a> LaneTracer<'a> {
             if AOV && dl.mine[i] {
                 // The lobe's probability: the choice of glass (or of the
                 // mirror) times reflection's or refraction's.
-                h.bounced[i] = ok;
-                h.b_pdf[i] = dl.p[i]
+                bounces.bounced[i] = ok;
+                bounces.pdf[i] = dl.p[i]
                     * if !glass {
                         1.0
                     } else if reflect {
@@ -1971,9 +1987,9 @@ impl<'a> LaneTracer<'a> {
                     } else {
                         1.0 - r
                     };
-                h.b_delta[i] = true;
+                bounces.delta[i] = true;
                 for c in 0..3 {
-                    h.b_weight[c][i] = dl.tint[c][i] * scale / dl.p[i];
+                    bounces.weight[c][i] = dl.tint[c][i] * scale / dl.p[i];
                 }
             }
             let mut m = 0.0f32;
@@ -2028,8 +2044,9 @@ impl<'a> LaneTracer<'a> {
         &self,
         geometry: &G,
         paths: &mut Paths,
-        h: &mut Hits,
+        h: &Hits,
         i: usize,
+        bounces: &mut BounceLanes,
         stats: &mut RayStats,
     ) -> bool {
         let lights = &self.scene.light_set;
@@ -2077,7 +2094,7 @@ impl<'a> LaneTracer<'a> {
                     }
                     if AOV && ls.delta {
                         for c in 0..3 {
-                            h.nee_delta[c][i] = add[c] * k;
+                            bounces.nee_delta[c][i] = add[c] * k;
                         }
                     }
                 }
@@ -2088,11 +2105,11 @@ impl<'a> LaneTracer<'a> {
         };
         throughput *= Vec3A::from(bs.weight);
         if AOV {
-            h.bounced[i] = true;
-            h.b_pdf[i] = bs.pdf;
-            h.b_delta[i] = bs.delta;
+            bounces.bounced[i] = true;
+            bounces.pdf[i] = bs.pdf;
+            bounces.delta[i] = bs.delta;
             for c in 0..3 {
-                h.b_weight[c][i] = bs.weight[c];
+                bounces.weight[c][i] = bs.weight[c];
             }
         }
         if throughput.max_element() <= 0.0 {
@@ -3122,11 +3139,6 @@ pub(crate) mod tests {
                     glossy: [kind == KIND_GLOSSY; LANES],
                     diffuse_glass: [kind == KIND_DIFFUSE_GLASS; LANES],
                     rnd: [Z; 7],
-                    nee_delta: Z3,
-                    bounced: [false; LANES],
-                    b_weight: Z3,
-                    b_pdf: Z,
-                    b_delta: [false; LANES],
                 };
                 for i in 0..LANES {
                     let (n, d) = (unit(&mut rng), unit(&mut rng));
@@ -3146,9 +3158,18 @@ pub(crate) mod tests {
                 let mut dl = DeltaLanes::of(&h);
                 let mut go_on = [false; LANES];
                 let mut stats = RayStats::default();
-                lt.shade_diffuse::<true, false, _>(g, &mut paths, &mut h, &mine, &mut dl, &mut go_on, &mut stats);
+                lt.shade_diffuse::<true, false, _>(
+                    g,
+                    &mut paths,
+                    &h,
+                    &mine,
+                    &mut dl,
+                    &mut go_on,
+                    &mut BounceLanes::none(),
+                    &mut stats,
+                );
                 if lane_mask(&dl.mine) != 0 {
-                    lt.shade_delta::<false>(&mut paths, &mut h, &dl, &mut go_on, &mut stats);
+                    lt.shade_delta::<false>(&mut paths, &h, &dl, &mut go_on, &mut BounceLanes::none(), &mut stats);
                 }
                 for i in 0..LANES {
                     let get = |a: &L3| Vec3::new(a[0][i], a[1][i], a[2][i]);
