@@ -103,6 +103,7 @@ use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::MeshHit;
 use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
 use lucent_shading::{Bsdf, DeltaLobe, Frame, LocalDir, Material};
+use std::borrow::Cow;
 use std::f32::consts::{FRAC_1_PI, TAU};
 
 mod instanced;
@@ -1232,6 +1233,19 @@ impl<'a> LaneTracer<'a> {
         paths.id[i] = NONE;
     }
 
+    /// Lane `i`'s BSDF at its hit: its material's plain one, or where the
+    /// hit is textured, the material's at the hit's texture coordinates
+    /// (built on the stack); `None` for a material the scene does not name.
+    #[inline(always)]
+    fn bsdf_at_hit(&self, h: &Hits, i: usize) -> Option<Cow<'_, Bsdf>> {
+        let material = h.material[i] as usize;
+        let plain = self.bsdfs.get(material)?;
+        Some(match self.scene.materials.get(material) {
+            Some(m) if h.textured[i] => Cow::Owned(m.bsdf_at(Some(Vec2::new(h.uv[0][i], h.uv[1][i])), None)),
+            _ => Cow::Borrowed(plain),
+        })
+    }
+
     /// The environment's radiance along `dir` (black without one), what a
     /// path that leaves the scene records as its background.
     fn environment_radiance(&self, dir: Vec3) -> Vec3 {
@@ -1264,15 +1278,9 @@ impl<'a> LaneTracer<'a> {
                 continue;
             }
             let get = |a: &L3| Vec3::new(a[0][i], a[1][i], a[2][i]);
-            let material = h.material[i];
-            let Some(plain) = self.bsdfs.get(material as usize) else {
+            let Some(bsdf) = self.bsdf_at_hit(h, i) else {
                 continue;
             };
-            let varying = match self.scene.materials.get(material as usize) {
-                Some(m) if h.textured[i] => Some(m.bsdf_at(Some(Vec2::new(h.uv[0][i], h.uv[1][i])), None)),
-                _ => None,
-            };
-            let bsdf = varying.as_ref().unwrap_or(plain);
             let (p, dir, ns) = (get(&h.p), get(&paths.d), get(&h.ns));
             let t = (p - get(&paths.o)).length();
             let facing = if ns.dot(dir) > 0.0 { -ns } else { ns };
@@ -2052,16 +2060,9 @@ impl<'a> LaneTracer<'a> {
         let lights = &self.scene.light_set;
         let get = |a: &L3| Vec3A::new(a[0][i], a[1][i], a[2][i]);
         let material = h.material[i];
-        let Some(plain) = self.bsdfs.get(material as usize) else {
+        let Some(bsdf) = self.bsdf_at_hit(h, i) else {
             return false;
         };
-        // A textured material's BSDF at the hit (built here, on the stack).
-        let textured = h.textured[i];
-        let varying = match self.scene.materials.get(material as usize) {
-            Some(m) if textured => Some(m.bsdf_at(Some(Vec2::new(h.uv[0][i], h.uv[1][i])), None)),
-            _ => None,
-        };
-        let bsdf = varying.as_ref().unwrap_or(plain);
         let dir = Vec3::from(get(&paths.d));
         let mut throughput = get(&paths.thr);
         let frame = Frame::from_normal(get(&h.ns).into());
