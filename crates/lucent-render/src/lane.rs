@@ -64,7 +64,7 @@
 //! polynomial's; the
 //! image is the same within noise (`tests` compares image means;
 //! `docs/benchmarks.md` gives the error against Mitsuba's reference, the
-//! same as the scalar tracer's, and the timings: 0.77 to 0.92 of the
+//! same as the scalar tracer's, and the timings: 0.78 to 0.97 of the
 //! scalar tracer's time on the three bench scenes). The
 //! lane code has no `unsafe` and no intrinsics: `isa.rs` compiles it once
 //! more inside `#[target_feature]` functions, and each copy gives the same
