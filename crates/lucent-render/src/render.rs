@@ -581,27 +581,7 @@ pub(crate) fn lane_samples(
     samples: Range<u32>,
 ) -> (Vec<Vec3>, RayStats, LaneCounts) {
     let mut radiance = vec![Vec3::ZERO; pixels.len() * samples.len()];
-    let out = &mut radiance;
-    // One copy of the loop per kind of tree, each its own function.
-    let (stats, counts) = if tracer.on_scene_tree() {
-        lane_isa.run(LanePixels::<true, false>::of(
-            tracer,
-            sampler,
-            pixels,
-            samples,
-            out,
-            &mut [],
-        ))
-    } else {
-        lane_isa.run(LanePixels::<false, false>::of(
-            tracer,
-            sampler,
-            pixels,
-            samples,
-            out,
-            &mut [],
-        ))
-    };
+    let (stats, counts) = run_lanes::<false>(lane_isa, tracer, sampler, pixels, samples, &mut radiance, &mut []);
     (radiance, stats, counts)
 }
 
@@ -617,15 +597,31 @@ pub(crate) fn lane_samples_aov(
 ) -> (Vec<Vec3>, Vec<AovSample>, RayStats, LaneCounts) {
     let n = pixels.len() * samples.len();
     let (mut radiance, mut aovs) = (vec![Vec3::ZERO; n], vec![AovSample::default(); n]);
-    let (out, rec) = (&mut radiance, &mut aovs);
-    let (stats, counts) = if tracer.on_scene_tree() {
-        lane_isa.run(LanePixels::<true, true>::of(tracer, sampler, pixels, samples, out, rec))
-    } else {
-        lane_isa.run(LanePixels::<false, true>::of(
-            tracer, sampler, pixels, samples, out, rec,
-        ))
-    };
+    let (stats, counts) = run_lanes::<true>(lane_isa, tracer, sampler, pixels, samples, &mut radiance, &mut aovs);
     (radiance, aovs, stats, counts)
+}
+
+/// The pool of [`lane_samples`] in the loop compiled for the scene's kind
+/// of tree (one copy each, each its own function), recording feature
+/// buffers into `aovs` where `AOV` is set.
+fn run_lanes<const AOV: bool>(
+    lane_isa: LaneIsa,
+    tracer: &LaneTracer<'_>,
+    sampler: &PixelSampler<'_>,
+    pixels: &[(u32, u32)],
+    samples: Range<u32>,
+    radiance: &mut [Vec3],
+    aovs: &mut [AovSample],
+) -> (RayStats, LaneCounts) {
+    if tracer.on_scene_tree() {
+        lane_isa.run(LanePixels::<true, AOV>::of(
+            tracer, sampler, pixels, samples, radiance, aovs,
+        ))
+    } else {
+        lane_isa.run(LanePixels::<false, AOV>::of(
+            tracer, sampler, pixels, samples, radiance, aovs,
+        ))
+    }
 }
 
 /// The samples of [`lane_samples`]: one pool of paths, traced by the loop
