@@ -1011,11 +1011,9 @@ impl<'a> LaneTracer<'a> {
                     None if sky.is_some() => left[i] = true,
                     None => {
                         let id = paths.id[i];
+                        let background = self.escape(&mut paths, i, rays[i].dir, out);
                         if AOV {
-                            rec.miss(i, self.environment_radiance(rays[i].dir));
-                        }
-                        self.escape(&mut paths, i, rays[i].dir, out);
-                        if AOV {
+                            rec.miss(i, background);
                             rec.finish(i, id, out);
                         }
                     }
@@ -1088,11 +1086,9 @@ impl<'a> LaneTracer<'a> {
                             }
                         }
                         (None, None) => {
+                            let background = self.escape(&mut paths, i, ray.dir, out);
                             if AOV {
-                                rec.miss(i, self.environment_radiance(ray.dir));
-                            }
-                            self.escape(&mut paths, i, ray.dir, out);
-                            if AOV {
+                                rec.miss(i, background);
                                 rec.finish(i, id, out);
                             }
                         }
@@ -1229,13 +1225,16 @@ impl<'a> LaneTracer<'a> {
     /// Lane `i`'s path left the scene along `dir`: it adds the
     /// environment's light (weighted against the environment's sampling
     /// after a non-delta bounce, as the scalar tracer does), hands its
-    /// radiance over and leaves the lane empty.
+    /// radiance over and leaves the lane empty; returns the environment's
+    /// radiance along `dir` (black without one), the background an AOV
+    /// render records.
     #[inline(never)]
-    fn escape(&self, paths: &mut Paths, i: usize, dir: Vec3, out: &mut [Vec3]) {
+    fn escape(&self, paths: &mut Paths, i: usize, dir: Vec3, out: &mut [Vec3]) -> Vec3 {
         let lights = &self.scene.light_set;
         let mut rad = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
+        let mut le = Vec3::ZERO;
         if let Some(env) = lights.environment() {
-            let le = env.eval(dir);
+            le = env.eval(dir);
             let w = if paths.prev_delta[i] {
                 1.0
             } else {
@@ -1249,6 +1248,7 @@ impl<'a> LaneTracer<'a> {
             *slot = rad;
         }
         paths.id[i] = NONE;
+        le
     }
 
     /// Lane `i`'s BSDF at its hit: its material's plain one, or where the
@@ -1262,15 +1262,6 @@ impl<'a> LaneTracer<'a> {
             Some(m) if h.textured[i] => Cow::Owned(m.bsdf_at(Some(Vec2::new(h.uv[0][i], h.uv[1][i])), None)),
             _ => Cow::Borrowed(plain),
         })
-    }
-
-    /// The environment's radiance along `dir` (black without one), what a
-    /// path that leaves the scene records as its background.
-    fn environment_radiance(&self, dir: Vec3) -> Vec3 {
-        self.scene
-            .light_set
-            .environment()
-            .map_or(Vec3::ZERO, |env| env.eval(dir))
     }
 
     /// Step 2's part of an AOV render, lane by lane: each path's surface

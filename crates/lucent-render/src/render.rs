@@ -580,15 +580,15 @@ pub(crate) fn lane_samples(
     pixels: &[(u32, u32)],
     samples: Range<u32>,
 ) -> (Vec<Vec3>, RayStats, LaneCounts) {
-    let mut radiance = vec![Vec3::ZERO; pixels.len() * samples.len()];
-    let (stats, counts) = run_lanes::<false>(lane_isa, tracer, sampler, pixels, samples, &mut radiance, &mut []);
+    let (radiance, _, stats, counts) = lane_samples_aov::<false>(lane_isa, tracer, sampler, pixels, samples);
     (radiance, stats, counts)
 }
 
-/// [`lane_samples`] that also records each sample's feature buffers
-/// (`aovs`, indexed as `radiance`), with the radiance [`lane_samples`]
-/// gives.
-pub(crate) fn lane_samples_aov(
+/// [`lane_samples`] that with `AOV` also records each sample's feature
+/// buffers (indexed as the radiance; empty without `AOV`), with the
+/// radiance [`lane_samples`] gives. The loop is compiled for the scene's
+/// kind of tree, one copy each, each its own function.
+pub(crate) fn lane_samples_aov<const AOV: bool>(
     lane_isa: LaneIsa,
     tracer: &LaneTracer<'_>,
     sampler: &PixelSampler<'_>,
@@ -596,32 +596,15 @@ pub(crate) fn lane_samples_aov(
     samples: Range<u32>,
 ) -> (Vec<Vec3>, Vec<AovSample>, RayStats, LaneCounts) {
     let n = pixels.len() * samples.len();
-    let (mut radiance, mut aovs) = (vec![Vec3::ZERO; n], vec![AovSample::default(); n]);
-    let (stats, counts) = run_lanes::<true>(lane_isa, tracer, sampler, pixels, samples, &mut radiance, &mut aovs);
-    (radiance, aovs, stats, counts)
-}
-
-/// The pool of [`lane_samples`] in the loop compiled for the scene's kind
-/// of tree (one copy each, each its own function), recording feature
-/// buffers into `aovs` where `AOV` is set.
-fn run_lanes<const AOV: bool>(
-    lane_isa: LaneIsa,
-    tracer: &LaneTracer<'_>,
-    sampler: &PixelSampler<'_>,
-    pixels: &[(u32, u32)],
-    samples: Range<u32>,
-    radiance: &mut [Vec3],
-    aovs: &mut [AovSample],
-) -> (RayStats, LaneCounts) {
-    if tracer.on_scene_tree() {
-        lane_isa.run(LanePixels::<true, AOV>::of(
-            tracer, sampler, pixels, samples, radiance, aovs,
-        ))
+    let mut radiance = vec![Vec3::ZERO; n];
+    let mut aovs = if AOV { vec![AovSample::default(); n] } else { Vec::new() };
+    let (out, rec) = (&mut radiance, &mut aovs);
+    let (stats, counts) = if tracer.on_scene_tree() {
+        lane_isa.run(LanePixels::<true, AOV>::of(tracer, sampler, pixels, samples, out, rec))
     } else {
-        lane_isa.run(LanePixels::<false, AOV>::of(
-            tracer, sampler, pixels, samples, radiance, aovs,
-        ))
-    }
+        lane_isa.run(LanePixels::<false, AOV>::of(tracer, sampler, pixels, samples, out, rec))
+    };
+    (radiance, aovs, stats, counts)
 }
 
 /// The samples of [`lane_samples`]: one pool of paths, traced by the loop
@@ -798,7 +781,7 @@ fn lane_row_aov(
     let (((((pixels, albedo), normal), depth), specular), delta) = rows;
     let n = samples.len();
     let at: Vec<(u32, u32)> = (0..pixels.len() as u32).map(|c| (c, row)).collect();
-    let (radiance, aov, stats, _) = lane_samples_aov(lane_isa, tracer, sampler, &at, samples);
+    let (radiance, aov, stats, _) = lane_samples_aov::<true>(lane_isa, tracer, sampler, &at, samples);
     if n > 0 {
         let aov_pixels = albedo
             .iter_mut()
