@@ -37,10 +37,18 @@ def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
     out = sys.argv[1]
-    n = int(sys.argv[2]) if len(sys.argv) > 2 else 1_000_000
-    seed = int(sys.argv[3]) if len(sys.argv) > 3 else 1
+    try:
+        n = int(sys.argv[2]) if len(sys.argv) > 2 else 1_000_000
+        seed = int(sys.argv[3]) if len(sys.argv) > 3 else 1
+    except ValueError as e:
+        sys.exit(f"cornell_rays.py: N and SEED must be whole numbers ({e})")
+    if n < 1:
+        sys.exit(f"cornell_rays.py: N must be at least 1, not {n}")
     # The peer's loader and writers: the peer folder is the parent of `out`.
-    sys.path.insert(0, os.path.dirname(os.path.abspath(out)))
+    peer = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(out) or not os.path.isfile(os.path.join(peer, "embree_rays.py")):
+        sys.exit(f"cornell_rays.py: {out} is not the out/ folder of an Embree peer set up by compare.sh")
+    sys.path.insert(0, peer)
     import embree_rays as er
 
     everything = sorted(f[:-4] for f in os.listdir(MESHES) if f.endswith(".ply"))
