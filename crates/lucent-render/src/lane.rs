@@ -1422,6 +1422,22 @@ impl<'a> LaneTracer<'a> {
             return;
         }
         let materials = &self.scene.materials;
+        // First ask for every lane's four texels, so that their cache
+        // misses overlap (a large texture's texels are seldom in cache),
+        // then look up.
+        for i in 0..LANES {
+            if !textured[i] {
+                continue;
+            }
+            if let Some(tex) = materials
+                .get(h.material[i] as usize)
+                .and_then(|m| m.diffuse_map.as_deref())
+            {
+                for texel in tex.footprint_texels(Vec2::new(h.uv[0][i], h.uv[1][i])) {
+                    crate::isa::prefetch_record(texel);
+                }
+            }
+        }
         for i in 0..LANES {
             if !textured[i] {
                 continue;

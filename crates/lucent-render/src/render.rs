@@ -562,7 +562,7 @@ pub(crate) fn lane_pixels(
     if n > 0 {
         for (px, values) in pixels.iter_mut().zip(radiance.chunks(n)) {
             for &v in values {
-                px.add_sample(v);
+                sampler.isa.add_sample(px, v);
             }
         }
     }
@@ -792,7 +792,7 @@ fn lane_row_aov(
         let values = radiance.chunks(n).zip(aov.chunks(n));
         for ((px, ((((a, nm), d), sp), dl)), (values, aovs)) in pixels.iter_mut().zip(aov_pixels).zip(values) {
             for (&v, s) in values.iter().zip(aovs) {
-                px.add_sample(v);
+                sampler.isa.add_sample(px, v);
                 s.add_to(a, nm, d, sp, dl);
             }
         }

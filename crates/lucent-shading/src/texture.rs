@@ -205,6 +205,15 @@ impl Texture {
         top.lerp(bottom, fy)
     }
 
+    /// The four texels [`Texture::sample_bilinear`] reads at `uv` (top
+    /// left, top right, bottom left, bottom right): for a caller that asks
+    /// for their cache lines ahead of the lookup.
+    #[inline]
+    pub fn footprint_texels(&self, uv: Vec2) -> [&Vec3; 4] {
+        let (corners, _, _) = self.footprint(uv);
+        corners.map(|i| &self.texels[i])
+    }
+
     /// Bilinear alpha at `uv` (1 without an alpha channel).
     #[inline]
     pub fn sample_alpha(&self, uv: Vec2) -> f32 {

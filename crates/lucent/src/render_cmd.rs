@@ -339,7 +339,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ),
     };
     println!(
-        "{}: {}x{}, {what}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.2} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s{per_spp}{denoised_note}",
+        "{}: {}x{}, {what}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.3} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s{per_spp}{denoised_note}",
         outputs.join(" + "),
         settings.width,
         settings.height,
