@@ -950,13 +950,15 @@ pub(crate) fn for_lanes(mut mask: u16, mut f: impl FnMut(usize)) {
 
 /// The closest-hit packet query (`MeshBvh::intersect_packet`), whole: the
 /// rays' constants in lanes, their groups, each group's walk (or each ray
-/// of a group too small to pay alone), the hits refined.
+/// of a group too small to pay alone), the hits refined where `refine`
+/// says.
 pub(crate) struct ClosestPacket<'a> {
     pub(crate) wide: &'a WideBvh,
     pub(crate) packs: &'a [Pack],
     pub(crate) rays: &'a [Ray; PACKET],
     pub(crate) t_max: &'a [f32; PACKET],
     pub(crate) active: u16,
+    pub(crate) refine: bool,
 }
 
 impl PacketQuery for ClosestPacket<'_> {
@@ -997,7 +999,11 @@ impl PacketQuery for ClosestPacket<'_> {
                     v: w[l] * inv_det[l],
                     prim,
                 };
-                out[l] = Some(refine(self.packs, &self.rays[l], slot, hit, self.t_max[l]));
+                out[l] = Some(if self.refine {
+                    refine(self.packs, &self.rays[l], slot, hit, self.t_max[l])
+                } else {
+                    hit
+                });
             }
         }
         (out, alone)
@@ -1278,12 +1284,31 @@ mod tests {
                 let single_any = (0..PACKET)
                     .filter(|&l| active >> l & 1 != 0 && bvh.occluded(&rays[l], t_max[l]))
                     .fold(0u16, |m, l| m | 1 << l);
+                let coarse: [Option<MeshHit>; PACKET] = std::array::from_fn(|l| {
+                    (active >> l & 1 != 0)
+                        .then(|| bvh.intersect_unrefined(&rays[l], t_max[l]))
+                        .flatten()
+                });
                 hits += single.iter().flatten().count();
                 occluded += single_any.count_ones();
+                for l in 0..PACKET {
+                    // Unrefined: the same triangle and barycentrics.
+                    let key = |h: Option<MeshHit>| h.map(|h| (h.prim, h.u.to_bits(), h.v.to_bits()));
+                    assert_eq!(key(coarse[l]), key(single[l]), "{name} lane {l}: {:?}", rays[l]);
+                }
                 for &k in &kernels {
-                    let got = bvh.intersect_packet_in(k, rays, t_max, *active);
+                    let got = bvh.intersect_packet_in(k, rays, t_max, *active, true);
                     for l in 0..PACKET {
                         assert_eq!(bits(got[l]), bits(single[l]), "{name} {k:?} lane {l}: {:?}", rays[l]);
+                    }
+                    let got = bvh.intersect_packet_in(k, rays, t_max, *active, false);
+                    for l in 0..PACKET {
+                        assert_eq!(
+                            bits(got[l]),
+                            bits(coarse[l]),
+                            "{name} {k:?} unrefined lane {l}: {:?}",
+                            rays[l]
+                        );
                     }
                     let got_any = bvh.occluded_packet_in(k, rays, t_max, *active);
                     assert_eq!(got_any, single_any, "{name} {k:?} any hit");
@@ -1330,7 +1355,7 @@ mod tests {
         let rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
         for k in [PacketLanes::Portable, PacketLanes::Alone] {
             assert!(
-                bvh.intersect_packet_in(k, &rays, &[1.0; PACKET], 0xffff)
+                bvh.intersect_packet_in(k, &rays, &[1.0; PACKET], 0xffff, true)
                     .iter()
                     .all(Option::is_none)
             );

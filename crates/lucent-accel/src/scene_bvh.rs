@@ -215,7 +215,26 @@ impl SceneBvh {
             scene: self,
             ray,
             t_max,
+            refine: true,
         })
+    }
+
+    /// [`SceneBvh::intersect`] without the f64 distance (as
+    /// [`MeshBvh::intersect_unrefined`]): the same instance, triangle and
+    /// barycentrics, bit for bit, `t` the f32 triangle test's.
+    pub fn intersect_unrefined(&self, ray: &Ray, t_max: f32) -> Option<SceneHit> {
+        self.run(Closest {
+            scene: self,
+            ray,
+            t_max,
+            refine: false,
+        })
+    }
+
+    /// The scene hit of the instance at `at` in `placed` before refinement.
+    #[inline(always)]
+    pub(crate) fn unrefined(&self, at: usize, hit: MeshHit) -> Option<SceneHit> {
+        Some(scene_hit(hit, self.placed.get(at)?.instance))
     }
 
     /// The scene hit of the instance at `at` in `placed`, hit by `ray`
@@ -281,7 +300,19 @@ impl SceneBvh {
         t_max: &[f32; PACKET],
         active: u16,
     ) -> [Option<SceneHit>; PACKET] {
-        self.intersect_packet_in(self.packet_lanes(), rays, t_max, active)
+        self.intersect_packet_in(self.packet_lanes(), rays, t_max, active, true)
+    }
+
+    /// [`SceneBvh::intersect_packet`] without the f64 distances: lane `l`
+    /// is [`SceneBvh::intersect_unrefined`]`(&rays[l], t_max[l])`, bit for
+    /// bit.
+    pub fn intersect_packet_unrefined(
+        &self,
+        rays: &[Ray; PACKET],
+        t_max: &[f32; PACKET],
+        active: u16,
+    ) -> [Option<SceneHit>; PACKET] {
+        self.intersect_packet_in(self.packet_lanes(), rays, t_max, active, false)
     }
 
     /// Whether anything is hit with `0 < t < t_max[l]` by each of up to
@@ -313,10 +344,18 @@ impl SceneBvh {
         rays: &[Ray; PACKET],
         t_max: &[f32; PACKET],
         active: u16,
+        refine: bool,
     ) -> [Option<SceneHit>; PACKET] {
+        let alone_hit = |ray: &Ray, t_max: f32| {
+            if refine {
+                self.intersect(ray, t_max)
+            } else {
+                self.intersect_unrefined(ray, t_max)
+            }
+        };
         if matches!(lanes, PacketLanes::Alone) {
             let mut out = [None; PACKET];
-            for_lanes(active, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+            for_lanes(active, |l| out[l] = alone_hit(&rays[l], t_max[l]));
             return out;
         }
         let (mut out, alone) = lanes.run(ClosestScenePacket {
@@ -324,8 +363,9 @@ impl SceneBvh {
             rays,
             t_max,
             active,
+            refine,
         });
-        for_lanes(alone, |l| out[l] = self.intersect(&rays[l], t_max[l]));
+        for_lanes(alone, |l| out[l] = alone_hit(&rays[l], t_max[l]));
         out
     }
 
@@ -378,6 +418,8 @@ struct Closest<'a> {
     scene: &'a SceneBvh,
     ray: &'a Ray,
     t_max: f32,
+    /// Whether the hit's distance is refined ([`SceneBvh::refine`]).
+    refine: bool,
 }
 
 impl Query for Closest<'_> {
@@ -395,6 +437,9 @@ impl Query for Closest<'_> {
             .wide
             .walk_sized::<true, B, _, ()>(boxes, self.ray, self.t_max, &mut visit, &mut ());
         let best = visit.best?;
+        if !self.refine {
+            return self.scene.unrefined(best.at, best.hit);
+        }
         self.scene
             .refine(leaves, self.ray, best.at, best.slot, best.hit, self.t_max)
     }

@@ -257,6 +257,8 @@ pub(crate) struct ClosestScenePacket<'a> {
     pub(crate) rays: &'a [Ray; PACKET],
     pub(crate) t_max: &'a [f32; PACKET],
     pub(crate) active: u16,
+    /// Whether the hits' distances are refined.
+    pub(crate) refine: bool,
 }
 
 impl PacketQuery for ClosestScenePacket<'_> {
@@ -301,7 +303,11 @@ impl PacketQuery for ClosestScenePacket<'_> {
                     prim: best.prim[l],
                 };
                 let (at, slot) = (best.at[l] as usize, best.slot[l] as usize);
-                out[l] = scene.refine(PortableLeaf, &self.rays[l], at, slot, hit, self.t_max[l]);
+                out[l] = if self.refine {
+                    scene.refine(PortableLeaf, &self.rays[l], at, slot, hit, self.t_max[l])
+                } else {
+                    scene.unrefined(at, hit)
+                };
             }
         }
         (out, alone)
@@ -532,12 +538,31 @@ mod tests {
                 let single_any = (0..PACKET)
                     .filter(|&l| active >> l & 1 != 0 && scene.occluded(&rays[l], t_max[l]))
                     .fold(0u16, |m, l| m | 1 << l);
+                let coarse: [Option<SceneHit>; PACKET] = std::array::from_fn(|l| {
+                    (active >> l & 1 != 0)
+                        .then(|| scene.intersect_unrefined(&rays[l], t_max[l]))
+                        .flatten()
+                });
                 hits += single.iter().flatten().count();
                 occluded += single_any.count_ones();
+                for l in 0..PACKET {
+                    // Unrefined: the same instance, triangle and barycentrics.
+                    let key = |h: Option<SceneHit>| h.map(|h| (h.instance, h.prim, h.u.to_bits(), h.v.to_bits()));
+                    assert_eq!(key(coarse[l]), key(single[l]), "{name} lane {l}: {:?}", rays[l]);
+                }
                 for &k in &kernels {
-                    let got = scene.intersect_packet_in(k, &rays, &t_max, active);
+                    let got = scene.intersect_packet_in(k, &rays, &t_max, active, true);
                     for l in 0..PACKET {
                         assert_eq!(bits(got[l]), bits(single[l]), "{name} {k:?} lane {l}: {:?}", rays[l]);
+                    }
+                    let got = scene.intersect_packet_in(k, &rays, &t_max, active, false);
+                    for l in 0..PACKET {
+                        assert_eq!(
+                            bits(got[l]),
+                            bits(coarse[l]),
+                            "{name} {k:?} unrefined lane {l}: {:?}",
+                            rays[l]
+                        );
                     }
                     let got_any = scene.occluded_packet_in(k, &rays, &t_max, active);
                     assert_eq!(got_any, single_any, "{name} {k:?} any hit");
@@ -580,7 +605,7 @@ mod tests {
             SceneBvh::build(Vec::new(), dangling, &BuildParams::default()),
         ] {
             for k in [PacketLanes::Portable, PacketLanes::Alone] {
-                let hits = scene.intersect_packet_in(k, &rays, &[f32::INFINITY; PACKET], 0xffff);
+                let hits = scene.intersect_packet_in(k, &rays, &[f32::INFINITY; PACKET], 0xffff, true);
                 assert!(hits.iter().all(Option::is_none));
                 assert_eq!(scene.occluded_packet_in(k, &rays, &[f32::INFINITY; PACKET], 0xffff), 0);
             }

@@ -342,7 +342,10 @@ trait Geometry {
     type Hit: Copy;
 
     /// The closest hits of the rays of `active` (bit per lane), walked
-    /// together where the tree does.
+    /// together where the tree does. The loop reads a hit's triangle and
+    /// barycentrics, never its distance, so the tree's queries skip the
+    /// f64 distance (`intersect_unrefined`: the same triangles and
+    /// barycentrics, bit for bit).
     fn intersect_packet(&self, rays: &[Ray; LANES], active: u16) -> [Option<Self::Hit>; LANES];
 
     /// The closest hit of one ray.
@@ -424,12 +427,12 @@ impl Geometry for FlatGeometry<'_> {
     fn intersect_packet(&self, rays: &[Ray; LANES], active: u16) -> [Option<MeshHit>; LANES] {
         self.flat
             .mesh_bvh()
-            .intersect_packet(rays, &[f32::INFINITY; LANES], active)
+            .intersect_packet_unrefined(rays, &[f32::INFINITY; LANES], active)
     }
 
     #[inline(always)]
     fn intersect(&self, ray: &Ray) -> Option<MeshHit> {
-        self.flat.mesh_bvh().intersect(ray, f32::INFINITY)
+        self.flat.mesh_bvh().intersect_unrefined(ray, f32::INFINITY)
     }
 
     #[inline(always)]

@@ -232,12 +232,13 @@ impl Geometry for SceneGeometry<'_> {
 
     #[inline(always)]
     fn intersect_packet(&self, rays: &[Ray; LANES], active: u16) -> [Option<SceneHit>; LANES] {
-        self.bvh.intersect_packet(rays, &[f32::INFINITY; LANES], active)
+        self.bvh
+            .intersect_packet_unrefined(rays, &[f32::INFINITY; LANES], active)
     }
 
     #[inline(always)]
     fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
-        self.bvh.intersect(ray, f32::INFINITY)
+        self.bvh.intersect_unrefined(ray, f32::INFINITY)
     }
 
     #[inline(always)]
