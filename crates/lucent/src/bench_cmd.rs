@@ -12,7 +12,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use lucent_geom::Named;
 use lucent_render::metrics::median;
-use lucent_render::{ExtractOptions, Integrator, current_threads, extract_with, render, with_threads};
+use lucent_render::{ExtractOptions, current_threads, extract_with, render, with_threads};
 use lucent_scene::Scene;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -78,11 +78,10 @@ fn bench_render(args: RenderBenchArgs) -> Result<()> {
     let json = with_threads(threads, || -> Result<serde_json::Value> {
         let t_build = Instant::now();
         let rs = extract_with(&scene, &options).with_context(|| name.clone())?;
-        if settings.integrator == Integrator::Path {
-            // The path tracer's one-level tree is built on demand; build it
-            // here so it counts as BVH time, not render time.
-            let _ = rs.flat_bvh();
-        }
+        // The path tracer's one-level tree and the lane tracer's records
+        // are built on demand; build them here so they count as build
+        // time, not render time.
+        rs.prepare(&settings);
         let build_s = t_build.elapsed().as_secs_f64();
         let _warm_up = render(&rs, &settings, &|_| {});
         let mut times = Vec::with_capacity(args.reps as usize);

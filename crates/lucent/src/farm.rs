@@ -196,6 +196,7 @@ pub fn run_turntable(args: &RenderArgs, frames: u32) -> Result<()> {
     with_threads(threads, || -> Result<()> {
         let t = Instant::now();
         let mut rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
+        rs.prepare(&settings);
         let build_s = t.elapsed().as_secs_f64();
         let phi0 = rs.rig.phi;
         let n_threads = current_threads();
@@ -215,7 +216,7 @@ pub fn run_turntable(args: &RenderArgs, frames: u32) -> Result<()> {
                 written.push(p.display().to_string());
             }
             println!(
-                "{}: frame {frame} of {frames} (phi {:.2} deg), {w}x{h}, {} spp, {n_threads} threads: rendered in {:.2} s (load {load_s:.2} s, BVH {build_s:.3} s)",
+                "{}: frame {frame} of {frames} (phi {:.2} deg), {w}x{h}, {} spp, {n_threads} threads: rendered in {:.3} s (load {load_s:.2} s, BVH and records {build_s:.3} s)",
                 written.join(" + "),
                 rs.rig.phi.to_degrees(),
                 settings.spp,

@@ -175,13 +175,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let (rs, build_s, made, n_threads) = with_threads(threads, || -> Result<_> {
         let t_build = Instant::now();
         let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
-        if settings.integrator == Integrator::Path {
-            // The path tracer's one-level tree is built on demand; build it
-            // here so it counts as BVH time, not render time.
-            let _ = rs.flat_bvh();
-        }
+        // The path tracer's one-level tree and the lane tracer's records
+        // are built on demand; build them here so they count as build
+        // time, not render time.
+        rs.prepare(&settings);
         let build_s = t_build.elapsed().as_secs_f64();
-        log::debug!("BVH built in {build_s:.3} s");
+        log::debug!("BVH and records built in {build_s:.3} s");
         let bar = ProgressBar::new(settings.height as u64).with_style(
             ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -339,7 +338,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ),
     };
     println!(
-        "{}: {}x{}, {what}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.3} s (load {load_s:.2} s, BVH {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s{per_spp}{denoised_note}",
+        "{}: {}x{}, {what}, {mode}, {n_threads} threads, {} triangles: rendered in {secs:.3} s (load {load_s:.2} s, BVH and records {build_s:.3} s), {:.2} M rays, {:.2} Mrays/s{per_spp}{denoised_note}",
         outputs.join(" + "),
         settings.width,
         settings.height,

@@ -139,6 +139,9 @@ pub fn run(args: ViewArgs) -> Result<()> {
     args.quality.overrides().apply(&mut scene.settings);
     // The BVH is built once, with the starting preset's build effort.
     let rs = extract_with(&scene, &args.quality.extract_options()).with_context(|| name.clone())?;
+    // The path tracer's tree and lane records too, so the first frame does
+    // not pay for them.
+    rs.prepare(&scene.settings);
     let (w, h) = (scene.settings.width, scene.settings.height);
     let mut window = Window::new(
         &format!("Lucent - {name}"),
