@@ -27,6 +27,14 @@
 //!   f64 fallback for edge functions that come out exactly zero runs lane by
 //!   lane, out of line.
 //!
+//! Where the processor also has AVX-512 F, VL, BW and DQ, a query runs in
+//! a second copy of the same function compiled with those features too
+//! ([`run_evex`]): the same intrinsics, encoded in EVEX by LLVM, with 32
+//! vector registers and mask registers, and the same bits. On a Zen 5 EPYC
+//! it took 0.97 to 0.98 of the AVX2 copy's time on the Cornell box and
+//! the heavy scene and 0.99 on the seed scene (`docs/benchmarks.md`).
+//! `LUCENT_TRAVERSAL_ISA=avx2` keeps the AVX2 copy, for diagnostics.
+//!
 //! Its submodules hold the packet walk's sixteen lanes (`crate::packet`),
 //! in AVX-512 (`avx512`) and in AVX2 (`avx2_packet`), each entered through
 //! a proof of its features made the same way.
@@ -64,10 +72,12 @@ use std::arch::x86_64::{
 };
 
 /// Proof that the processor has AVX2, FMA, BMI1, BMI2, LZCNT and POPCNT (made only by
-/// [`Avx2::detect`]).
+/// [`Avx2::detect`]), and whether it has AVX-512 F, VL, BW and DQ too.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Avx2 {
-    _private: (),
+    /// Queries run in the EVEX copy ([`run_evex`]): the processor has
+    /// AVX-512 F, VL, BW and DQ, and `LUCENT_TRAVERSAL_ISA` is not `avx2`.
+    evex: bool,
 }
 
 impl Avx2 {
@@ -75,7 +85,14 @@ impl Avx2 {
     pub(crate) fn detect() -> Option<Self> {
         use std::arch::is_x86_feature_detected as has;
         (has!("avx2") && has!("fma") && has!("bmi1") && has!("bmi2") && has!("lzcnt") && has!("popcnt"))
-            .then_some(Self { _private: () })
+            .then(|| Self { evex: evex_chosen() })
+    }
+
+    /// This kernel in its AVX2 copy, whatever the processor has beside it
+    /// (to compare the copies in tests).
+    #[cfg(test)]
+    pub(crate) fn avx2_copy(self) -> Self {
+        Self { evex: false }
     }
 
     /// Runs query `q` with the AVX2 box test and AVX2 pack tests, compiled
@@ -83,6 +100,11 @@ impl Avx2 {
     /// function with those features, so the intrinsics inline into it.
     #[inline]
     pub(crate) fn run<Q: Query>(self, q: Q) -> Q::Output {
+        if self.evex {
+            // SAFETY: `evex` is set only where `evex_chosen` found AVX-512
+            // F, VL, BW and DQ, beside what `detect` found.
+            return unsafe { run_evex(self, q) };
+        }
         // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
         unsafe { run_avx2(self, q) }
     }
@@ -90,9 +112,28 @@ impl Avx2 {
     /// [`Avx2::run`] with the portable pack tests (for Moller-Trumbore).
     #[inline]
     pub(crate) fn run_boxes<Q: Query>(self, q: Q) -> Q::Output {
+        if self.evex {
+            // SAFETY: as in `run`.
+            return unsafe { run_boxes_evex(self, q) };
+        }
         // SAFETY: an `Avx2` exists only where `detect` found AVX2, FMA and the rest.
         unsafe { run_boxes_avx2(self, q) }
     }
+}
+
+/// Whether queries take the EVEX copy: the processor has AVX-512 F, VL, BW
+/// and DQ, unless `LUCENT_TRAVERSAL_ISA=avx2` asks for the AVX2 copy (for
+/// diagnostics: valgrind hides AVX-512). Decided once.
+fn evex_chosen() -> bool {
+    use std::arch::is_x86_feature_detected as has;
+    static CHOSEN: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *CHOSEN.get_or_init(|| {
+        std::env::var("LUCENT_TRAVERSAL_ISA").as_deref() != Ok("avx2")
+            && has!("avx512f")
+            && has!("avx512vl")
+            && has!("avx512bw")
+            && has!("avx512dq")
+    })
 }
 
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
@@ -102,6 +143,22 @@ fn run_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
 
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn run_boxes_avx2<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
+    q.run(avx2, PortableLeaf)
+}
+
+/// [`run_avx2`] compiled once more with AVX-512 F, VL, BW and DQ: the same
+/// source and intrinsics, which LLVM then encodes in EVEX, with 32 vector
+/// registers and mask registers (fewer spills in the walk). It rounds as
+/// the AVX2 copy does (Rust never contracts into FMAs), so it finds the
+/// same hits bit for bit (`mesh_bvh::tests`).
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq")]
+fn run_evex<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
+    q.run(avx2, avx2)
+}
+
+/// [`run_boxes_avx2`] in the EVEX copy (see [`run_evex`]).
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512bw,avx512dq")]
+fn run_boxes_evex<Q: Query>(avx2: Avx2, q: Q) -> Q::Output {
     q.run(avx2, PortableLeaf)
 }
 

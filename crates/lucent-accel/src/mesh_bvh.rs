@@ -1334,16 +1334,26 @@ pub(crate) mod tests {
         }
     }
 
-    /// The walk with the AVX2 box test (where this processor has it) and
-    /// the portable walk answer every query alike, bit for bit, and do the
-    /// same work (nodes and packs tested), on soups and on hostile rays.
+    /// The walk with the AVX2 box test (where this processor has it; in its
+    /// EVEX copy and its AVX2 copy where it has AVX-512) and the portable
+    /// walk answer every query alike, bit for bit, and do the same work
+    /// (nodes and packs tested), on soups and on hostile rays.
     #[test]
     fn vector_kernel_matches_the_portable_walk_bit_for_bit() {
         let bits = |h: Option<MeshHit>| h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim));
         for seed in 0..2 {
             let mesh = random_soup(400, seed + 20);
-            for params in all_params() {
-                let simd = MeshBvh::build(&mesh, &params);
+            for (params, avx2_copy) in all_params().into_iter().flat_map(|p| [(p, false), (p, true)]) {
+                #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+                let mut simd = MeshBvh::build(&mesh, &params);
+                if avx2_copy {
+                    // The AVX2 copy where the processor would take the
+                    // EVEX one (the same tree otherwise).
+                    #[cfg(target_arch = "x86_64")]
+                    {
+                        simd.wide.simd = simd.wide.simd.map(|k| k.avx2_copy());
+                    }
+                }
                 let portable = simd.clone().with_vector_kernel(false);
                 assert!(!portable.vector_kernel());
                 let mut rng = Pcg32::new(seed, 4);
