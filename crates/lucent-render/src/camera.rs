@@ -1,6 +1,6 @@
 //! Primary rays of the report's pinhole camera (S1) placed by the orbit rig (S2).
 
-use lucent_geom::{Affine3A, Ray};
+use lucent_geom::{Affine3A, Ray, Vec3};
 use lucent_scene::camera::{Camera, Intrinsics, OrbitRig};
 
 /// A pinhole camera for one image size, placed in the space of its rig
@@ -39,12 +39,74 @@ impl PinholeCamera {
             self.render_from_camera.transform_vector3(d).normalize(),
         )
     }
+
+    /// [`PinholeCamera::ray`] through the sixteen image points
+    /// (`col[k]`, `row[k]`), bit for bit, as loops over the sixteen that
+    /// the compiler vectorises: the origin, and the unit directions'
+    /// x, y and z rows. The same operations in the same order (no fused
+    /// multiply-add), so the same roundings.
+    #[inline(always)]
+    pub fn rays_in_lanes(&self, col: &[f32; 16], row: &[f32; 16]) -> (Vec3, [[f32; 16]; 3]) {
+        let k = &self.intrinsics;
+        let m = &self.render_from_camera.matrix3;
+        let (ax, ay, az) = (m.x_axis, m.y_axis, m.z_axis);
+        let (w, h) = (self.width as f32, self.height as f32);
+        let mut dir = [[0.0f32; 16]; 3];
+        for l in 0..16 {
+            let dx = (w - col[l] - k.u0) / k.fx;
+            let dy = (h - row[l] - k.v0) / k.fy;
+            // glam's `Mat3A * Vec3A`: x axis, plus y axis, plus z axis (z
+            // of the camera-space direction is 1).
+            let r = [
+                ax.x * dx + ay.x * dy + az.x * 1.0,
+                ax.y * dx + ay.y * dy + az.y * 1.0,
+                ax.z * dx + ay.z * dy + az.z * 1.0,
+            ];
+            // glam's `normalize`: times the reciprocal of the length.
+            let inv = 1.0 / (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+            for c in 0..3 {
+                dir[c][l] = r[c] * inv;
+            }
+        }
+        (self.render_from_camera.translation.into(), dir)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use lucent_geom::Vec3;
+
+    #[test]
+    fn rays_in_lanes_are_the_single_rays_bit_for_bit() {
+        let mut rng = lucent_geom::Pcg32::new(5, 1);
+        for (width, height, fov, theta, phi) in [
+            (640, 360, 40.0, 0.28, 1.57),
+            (256, 256, 90.0, -1.2, 4.0),
+            (7, 3000, 1.0, 0.0, 0.0),
+        ] {
+            let rig = OrbitRig {
+                center: Vec3::new(0.3, -2.0, 7.0),
+                radius: 5.2,
+                theta,
+                phi,
+            };
+            let cam = PinholeCamera::new(&Camera { fov_y_deg: fov }, &rig, width, height);
+            for _ in 0..200 {
+                let col: [f32; 16] = std::array::from_fn(|_| rng.next_f32() * (width as f32 + 2.0) - 1.0);
+                let row: [f32; 16] = std::array::from_fn(|_| rng.next_f32() * (height as f32 + 2.0) - 1.0);
+                let (origin, dir) = cam.rays_in_lanes(&col, &row);
+                for l in 0..16 {
+                    let one = cam.ray(col[l], row[l]);
+                    assert_eq!(
+                        origin.to_array().map(f32::to_bits),
+                        one.origin.to_array().map(f32::to_bits)
+                    );
+                    let lane = [dir[0][l], dir[1][l], dir[2][l]].map(f32::to_bits);
+                    assert_eq!(lane, one.dir.to_array().map(f32::to_bits), "({}, {})", col[l], row[l]);
+                }
+            }
+        }
+    }
 
     #[test]
     fn centre_ray_looks_at_the_orbit_centre_and_right_is_right() {

@@ -539,24 +539,51 @@ impl<H: Copy> CameraRays<H> {
     /// The pool's next (up to) sixteen paths from `*next` (of `n`),
     /// started by `start`, their camera rays traced as one packet.
     #[inline(always)]
-    fn fill<G: Geometry<Hit = H>>(
-        &mut self,
-        geometry: &G,
-        start: &impl Fn(usize) -> (Ray, Pcg32),
-        next: &mut usize,
-        n: usize,
-    ) {
+    fn fill<G: Geometry<Hit = H>>(&mut self, geometry: &G, start: &impl PathStarts, next: &mut usize, n: usize) {
         self.len = (n - *next).min(LANES);
         self.at = 0;
+        start.starts(*next, self.len, &mut self.ray, &mut self.state, &mut self.inc);
         for k in 0..self.len {
-            let (ray, rng) = start(*next);
-            (self.state[k], self.inc[k]) = rng.to_parts();
-            self.ray[k] = ray;
             self.id[k] = *next as u32;
             *next += 1;
         }
         let active = (((1u32 << self.len) - 1) & 0xffff) as u16;
         self.hit = geometry.intersect_packet(&self.ray, active);
+    }
+}
+
+/// Where the pool's paths start: each one's camera ray and random stream.
+pub(crate) trait PathStarts {
+    /// Paths `first..first + len` (`len` at most [`LANES`]) into lanes
+    /// `0..len`: camera rays into `ray`, and their generators
+    /// ([`Pcg32::to_parts`]) into `state` and `inc`. Always inlined, so
+    /// the loop's copy compiles it.
+    fn starts(
+        &self,
+        first: usize,
+        len: usize,
+        ray: &mut [Ray; LANES],
+        state: &mut [u64; LANES],
+        inc: &mut [u64; LANES],
+    );
+}
+
+/// One path at a time: path `k` from `f(k)`.
+impl<F: Fn(usize) -> (Ray, Pcg32)> PathStarts for F {
+    #[inline(always)]
+    fn starts(
+        &self,
+        first: usize,
+        len: usize,
+        ray: &mut [Ray; LANES],
+        state: &mut [u64; LANES],
+        inc: &mut [u64; LANES],
+    ) {
+        for k in 0..len.min(LANES) {
+            let (r, rng) = self(first + k);
+            (state[k], inc[k]) = rng.to_parts();
+            ray[k] = r;
+        }
     }
 }
 
@@ -917,7 +944,7 @@ impl<'a> LaneTracer<'a> {
     #[inline(always)]
     pub(crate) fn trace_aov<const SCENE: bool, const AOV: bool>(
         &self,
-        start: impl Fn(usize) -> (Ray, Pcg32),
+        start: impl PathStarts,
         out: &mut [Vec3],
         aovs: &mut [AovSample],
         stats: &mut RayStats,
@@ -940,7 +967,7 @@ impl<'a> LaneTracer<'a> {
     fn trace_in<G: Geometry, const AOV: bool>(
         &self,
         geometry: &G,
-        start: impl Fn(usize) -> (Ray, Pcg32),
+        start: impl PathStarts,
         out: &mut [Vec3],
         rec: &mut AovLanes<'_>,
         stats: &mut RayStats,

@@ -3,7 +3,7 @@
 use crate::aov::{AovFilm, AovSample, DeltaLightSums, SpecularSums};
 use crate::flat::TracedTree;
 use crate::isa::{Isa, Kernel, LaneIsa};
-use crate::lane::{LaneCounts, LaneTracer};
+use crate::lane::{LANES, LaneCounts, LaneTracer, PathStarts};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{ExactRgb, Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
@@ -653,16 +653,74 @@ impl<const SCENE: bool, const AOV: bool> Kernel for LanePixels<'_, '_, SCENE, AO
             .iter()
             .map(|&(col, row)| self.sampler.pixel_key(col, row))
             .collect();
-        let first = self.samples.start;
-        let start = |k: usize| {
-            let i = k / n;
-            let (col, row) = self.pixels.get(i).copied().unwrap_or((0, 0));
-            let key = keys.get(i).copied().unwrap_or(0);
-            self.sampler.path_start_keyed(key, col, row, first + (k % n) as u32)
+        let start = LaneStarts {
+            sampler: self.sampler,
+            pixels: self.pixels,
+            keys: &keys,
+            n,
+            first: self.samples.start,
         };
         self.tracer
             .trace_aov::<SCENE, AOV>(start, self.radiance, self.aovs, &mut stats, &mut counts);
         (stats, counts)
+    }
+}
+
+/// The paths of [`LanePixels`]: path `k` is sample `first + k % n` of
+/// pixel `pixels[k / n]`, started as [`PixelSampler::path_start_keyed`]
+/// starts it, bit for bit, sixteen at a time in lanes (the keys' hashes,
+/// the generators' first steps, the jitter and the camera rays' division
+/// and normalisation as loops over sixteen lanes).
+struct LaneStarts<'r, 'a> {
+    sampler: &'r PixelSampler<'a>,
+    pixels: &'r [(u32, u32)],
+    /// Each pixel's key ([`PixelSampler::pixel_key`]).
+    keys: &'r [u64],
+    n: usize,
+    first: u32,
+}
+
+impl PathStarts for LaneStarts<'_, '_> {
+    #[inline(always)]
+    fn starts(
+        &self,
+        first: usize,
+        len: usize,
+        ray: &mut [Ray; LANES],
+        state: &mut [u64; LANES],
+        inc: &mut [u64; LANES],
+    ) {
+        let mut key = [0u64; LANES];
+        let mut sample = [0u64; LANES];
+        let mut col = [0.0f32; LANES];
+        let mut row = [0.0f32; LANES];
+        for k in 0..len.min(LANES) {
+            let p = first + k;
+            let i = p / self.n;
+            let (c, r) = self.pixels.get(i).copied().unwrap_or((0, 0));
+            key[k] = self.keys.get(i).copied().unwrap_or(0);
+            sample[k] = u64::from(self.first + (p % self.n) as u32);
+            (col[k], row[k]) = (c as f32, r as f32);
+        }
+        // `Pcg32::new(hash_u64_from(key, &[sample]), 0)`, then two floats.
+        let mut jx = [0.0f32; LANES];
+        let mut jy = [0.0f32; LANES];
+        for k in 0..LANES {
+            let seed = hash_u64_from(key[k], &[sample[k]]);
+            let mut rng = Pcg32::from_parts(1u64.wrapping_add(seed), 1);
+            rng.skip(1);
+            jx[k] = rng.next_f32();
+            jy[k] = rng.next_f32();
+            (state[k], inc[k]) = rng.to_parts();
+        }
+        for k in 0..LANES {
+            col[k] += jx[k];
+            row[k] += jy[k];
+        }
+        let (origin, dir) = self.sampler.camera.rays_in_lanes(&col, &row);
+        for k in 0..len.min(LANES) {
+            ray[k] = Ray::new(origin, Vec3::new(dir[0][k], dir[1][k], dir[2][k]));
+        }
     }
 }
 
