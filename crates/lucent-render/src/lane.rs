@@ -550,6 +550,34 @@ impl<H: Copy> CameraRays<H> {
         let active = (((1u32 << self.len) - 1) & 0xffff) as u16;
         self.hit = geometry.intersect_packet(&self.ray, active);
     }
+
+    /// Ends the buffered paths whose camera ray left the scene under a
+    /// constant sky of radiance `radiance` (throughput 1, no radiance
+    /// before, weight 1: the sky's radiance is theirs) and keeps the others
+    /// in order, so the lanes take only paths that hit, in the order they
+    /// would have (the same lanes, the same bits), without a branch per
+    /// path in the refill. Without AOVs (whose recorders are per lane).
+    #[inline(always)]
+    fn settle_sky(&mut self, radiance: [f32; 3], out: &mut [Vec3], stats: &mut RayStats) {
+        let mut kept = 0;
+        for k in self.at..self.len.min(LANES) {
+            if self.hit[k].is_some() {
+                self.ray[kept] = self.ray[k];
+                self.state[kept] = self.state[k];
+                self.inc[kept] = self.inc[k];
+                self.id[kept] = self.id[k];
+                self.hit[kept] = self.hit[k];
+                kept += 1;
+            } else {
+                if let Some(slot) = out.get_mut(self.id[k] as usize) {
+                    *slot = Vec3::from(radiance);
+                }
+                stats.primary += 1;
+            }
+        }
+        self.at = 0;
+        self.len = kept;
+    }
 }
 
 /// Where the pool's paths start: each one's camera ray and random stream.
@@ -1071,11 +1099,14 @@ impl<'a> LaneTracer<'a> {
             }
             for i in 0..LANES {
                 while paths.id[i] == NONE {
-                    if camera.at == camera.len {
-                        if next >= n {
-                            break;
-                        }
+                    while camera.at == camera.len && next < n {
                         camera.fill(geometry, &start, &mut next, n);
+                        if !AOV && let Some((radiance, _)) = sky {
+                            camera.settle_sky(radiance, out, stats);
+                        }
+                    }
+                    if camera.at == camera.len {
+                        break;
                     }
                     let at = camera.at % LANES;
                     camera.at += 1;
