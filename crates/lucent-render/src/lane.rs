@@ -596,25 +596,6 @@ pub(crate) trait PathStarts {
     );
 }
 
-/// One path at a time: path `k` from `f(k)`.
-impl<F: Fn(usize) -> (Ray, Pcg32)> PathStarts for F {
-    #[inline(always)]
-    fn starts(
-        &self,
-        first: usize,
-        len: usize,
-        ray: &mut [Ray; LANES],
-        state: &mut [u64; LANES],
-        inc: &mut [u64; LANES],
-    ) {
-        for k in 0..len.min(LANES) {
-            let (r, rng) = self(first + k);
-            (state[k], inc[k]) = rng.to_parts();
-            ray[k] = r;
-        }
-    }
-}
-
 /// One step's hits and vertices in lanes.
 struct Hits {
     /// The index of the hit's record ([`Geometry::take_hit`]), or [`NONE`].

@@ -909,6 +909,55 @@ mod tests {
         }
     }
 
+    /// The lanes' path starts are `path_start_keyed`'s, bit for bit: the
+    /// camera ray and the generator, for every pixel and sample of a row,
+    /// in runs of up to sixteen that cross pixels, at a first sample
+    /// other than 0.
+    #[test]
+    fn lane_starts_are_the_scalar_path_starts_bit_for_bit() {
+        let rs = scene();
+        for (width, height, seed) in [(37, 5, 0), (640, 360, 9)] {
+            let settings = RenderSettings {
+                width,
+                height,
+                seed,
+                integrator: Integrator::Path,
+                ..RenderSettings::default()
+            };
+            let sampler = PixelSampler::new(&rs, &settings, width, height);
+            let pixels: Vec<(u32, u32)> = (0..width).map(|c| (c, height - 2)).collect();
+            let keys: Vec<u64> = pixels.iter().map(|&(c, r)| sampler.pixel_key(c, r)).collect();
+            for (n, first) in [(1usize, 0u32), (3, 5), (16, 0), (7, 100)] {
+                let starts = LaneStarts {
+                    sampler: &sampler,
+                    pixels: &pixels,
+                    keys: &keys,
+                    n,
+                    first,
+                };
+                let total = pixels.len() * n;
+                for (at, len) in [(0, 16), (5, 16), (total - 3, 3), (total - 16, 16)] {
+                    let mut ray = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+                    let (mut state, mut inc) = ([0u64; LANES], [0u64; LANES]);
+                    starts.starts(at, len, &mut ray, &mut state, &mut inc);
+                    for k in 0..len {
+                        let p = at + k;
+                        let (col, row) = pixels[p / n];
+                        let (one, rng) = sampler.path_start_keyed(keys[p / n], col, row, first + (p % n) as u32);
+                        let bits = |r: &Ray| {
+                            (
+                                r.origin.to_array().map(f32::to_bits),
+                                r.dir.to_array().map(f32::to_bits),
+                            )
+                        };
+                        assert_eq!(bits(&ray[k]), bits(&one), "path {p} of {n} a pixel");
+                        assert_eq!((state[k], inc[k]), rng.to_parts(), "path {p}");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn an_uncancelled_pass_matches_render_samples_and_a_cancelled_one_adds_nothing() {
         let rs = scene();
