@@ -102,7 +102,7 @@ use crate::lights::SHADOW_SHORTEN;
 use crate::path::{NARROW_PDF, power_heuristic};
 use crate::{RayStats, RenderScene, RenderSettings};
 use lucent_accel::MeshHit;
-use lucent_geom::{Pcg32, Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
+use lucent_geom::{Ray, Vec2, Vec3, Vec3A, offset_coord, offset_ray_origin_a};
 use lucent_shading::{Bsdf, DeltaLobe, Frame, LocalDir, Material};
 use std::borrow::Cow;
 use std::f32::consts::{FRAC_1_PI, TAU};
@@ -584,7 +584,7 @@ impl<H: Copy> CameraRays<H> {
 pub(crate) trait PathStarts {
     /// Paths `first..first + len` (`len` at most [`LANES`]) into lanes
     /// `0..len`: camera rays into `ray`, and their generators
-    /// ([`Pcg32::to_parts`]) into `state` and `inc`. Always inlined, so
+    /// ([`lucent_geom::Pcg32::to_parts`]) into `state` and `inc`. Always inlined, so
     /// the loop's copy compiles it.
     fn starts(
         &self,
@@ -2381,7 +2381,7 @@ pub(crate) mod tests {
     use crate::isa::LaneIsa;
     use crate::render::{trace_rows_lanes, with_threads};
     use crate::{Film, Integrator, RenderScene, extract};
-    use lucent_geom::{Affine3A, shapes};
+    use lucent_geom::{Affine3A, Pcg32, shapes};
     use lucent_scene::{Scene, components::Material as SceneMaterial, fixtures};
     use std::sync::atomic::AtomicBool;
 
