@@ -13,6 +13,7 @@ const MULT: u64 = 6_364_136_223_846_793_005;
 impl Pcg32 {
     /// A generator for `seed` on stream `stream`; different streams give
     /// independent sequences for the same seed.
+    #[inline]
     pub fn new(seed: u64, stream: u64) -> Self {
         let mut rng = Self {
             state: 0,

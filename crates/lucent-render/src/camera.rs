@@ -47,20 +47,16 @@ impl PinholeCamera {
     /// multiply-add), so the same roundings.
     #[inline(always)]
     pub fn rays_in_lanes(&self, col: &[f32; 16], row: &[f32; 16]) -> (Vec3, [[f32; 16]; 3]) {
-        let k = &self.intrinsics;
         let m = &self.render_from_camera.matrix3;
         let (ax, ay, az) = (m.x_axis, m.y_axis, m.z_axis);
-        let (w, h) = (self.width as f32, self.height as f32);
         let mut dir = [[0.0f32; 16]; 3];
         for l in 0..16 {
-            let dx = (w - col[l] - k.u0) / k.fx;
-            let dy = (h - row[l] - k.v0) / k.fy;
-            // glam's `Mat3A * Vec3A`: x axis, plus y axis, plus z axis (z
-            // of the camera-space direction is 1).
+            let d = Camera::camera_ray_dir(&self.intrinsics, self.width, self.height, col[l], row[l]);
+            // glam's `Mat3A * Vec3A`: x axis, plus y axis, plus z axis.
             let r = [
-                ax.x * dx + ay.x * dy + az.x * 1.0,
-                ax.y * dx + ay.y * dy + az.y * 1.0,
-                ax.z * dx + ay.z * dy + az.z * 1.0,
+                ax.x * d.x + ay.x * d.y + az.x * d.z,
+                ax.y * d.x + ay.y * d.y + az.y * d.z,
+                ax.z * d.x + ay.z * d.y + az.z * d.z,
             ];
             // glam's `normalize`: times the reciprocal of the length.
             let inv = 1.0 / (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();

@@ -707,8 +707,7 @@ impl PathStarts for LaneStarts<'_, '_> {
         let mut jy = [0.0f32; LANES];
         for k in 0..LANES {
             let seed = hash_u64_from(key[k], &[sample[k]]);
-            let mut rng = Pcg32::from_parts(1u64.wrapping_add(seed), 1);
-            rng.skip(1);
+            let mut rng = Pcg32::new(seed, 0);
             jx[k] = rng.next_f32();
             jy[k] = rng.next_f32();
             (state[k], inc[k]) = rng.to_parts();

@@ -83,6 +83,7 @@ impl Camera {
     /// left and up in the picture, so `u = width - col` and
     /// `v = height - row`; then the direction is the report's
     /// `((u - u0) / fx, (v - v0) / fy, 1)`.
+    #[inline]
     pub fn camera_ray_dir(k: &Intrinsics, width: u32, height: u32, col: f32, row: f32) -> Vec3 {
         let u = width as f32 - col;
         let v = height as f32 - row;
