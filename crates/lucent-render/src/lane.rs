@@ -1464,9 +1464,10 @@ impl<'a> LaneTracer<'a> {
             return;
         }
         let materials = &self.scene.materials;
-        // First ask for every lane's four texels, so that their cache
-        // misses overlap (a large texture's texels are seldom in cache),
-        // then look up.
+        // First find every lane's four texels and ask for them, so that
+        // their cache misses overlap (a large texture's texels are seldom
+        // in cache), then look up.
+        let mut at = [None; LANES];
         for i in 0..LANES {
             if !textured[i] {
                 continue;
@@ -1475,21 +1476,16 @@ impl<'a> LaneTracer<'a> {
                 .get(h.material[i] as usize)
                 .and_then(|m| m.diffuse_map.as_deref())
             {
-                for texel in tex.footprint_texels(Vec2::new(h.uv[0][i], h.uv[1][i])) {
+                let footprint = tex.footprint_at(Vec2::new(h.uv[0][i], h.uv[1][i]));
+                for texel in tex.footprint_texels(&footprint) {
                     crate::isa::prefetch_record(texel);
                 }
+                at[i] = Some((tex, footprint));
             }
         }
         for i in 0..LANES {
-            if !textured[i] {
-                continue;
-            }
-            let m = h.material[i];
-            if let Some(tex) = materials.get(m as usize).and_then(|m| m.diffuse_map.as_deref()) {
-                let tint = tex
-                    .sample_bilinear(Vec2::new(h.uv[0][i], h.uv[1][i]))
-                    .max(Vec3::ZERO)
-                    .min(Vec3::ONE);
+            if let Some((tex, footprint)) = &at[i] {
+                let tint = tex.sample_footprint(footprint).max(Vec3::ZERO).min(Vec3::ONE);
                 for c in 0..3 {
                     h.albedo[c][i] *= tint[c];
                 }

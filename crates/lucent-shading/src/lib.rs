@@ -48,4 +48,4 @@ pub use environment::{EnvironmentMap, EnvironmentMapError};
 pub use light::{Light, LightSample};
 pub use lucent_geom::{Vec2, Vec3};
 pub use material::{AlphaMode, Material, MetallicRoughness};
-pub use texture::{Texture, TextureError, WrapMode};
+pub use texture::{Footprint, Texture, TextureError, WrapMode};

@@ -205,13 +205,42 @@ impl Texture {
         top.lerp(bottom, fy)
     }
 
-    /// The four texels [`Texture::sample_bilinear`] reads at `uv` (top
-    /// left, top right, bottom left, bottom right): for a caller that asks
-    /// for their cache lines ahead of the lookup.
+    /// Where [`Texture::sample_bilinear`] reads at `uv`, found once: for a
+    /// caller that asks for the texels' cache lines ahead of the lookup
+    /// ([`Texture::footprint_texels`]), then looks up
+    /// ([`Texture::sample_footprint`]) without finding them again.
+    ///
+    /// ```
+    /// use lucent_shading::Texture;
+    /// use lucent_geom::{Vec2, Vec3};
+    /// let t = Texture::new(2, 1, vec![Vec3::X, Vec3::Y]).unwrap();
+    /// let uv = Vec2::new(0.6, 0.5);
+    /// let at = t.footprint_at(uv);
+    /// assert_eq!(t.footprint_texels(&at).count(), 4);
+    /// assert_eq!(t.sample_footprint(&at), t.sample_bilinear(uv));
+    /// ```
     #[inline]
-    pub fn footprint_texels(&self, uv: Vec2) -> [&Vec3; 4] {
-        let (corners, _, _) = self.footprint(uv);
-        corners.map(|i| &self.texels[i])
+    pub fn footprint_at(&self, uv: Vec2) -> Footprint {
+        let (corners, fx, fy) = self.footprint(uv);
+        Footprint { corners, fx, fy }
+    }
+
+    /// The four texels a lookup of `at` reads (top left, top right, bottom
+    /// left, bottom right); none where `at` came from a larger texture.
+    #[inline]
+    pub fn footprint_texels(&self, at: &Footprint) -> impl Iterator<Item = &Vec3> {
+        at.corners.iter().filter_map(|&i| self.texels.get(i))
+    }
+
+    /// [`Texture::sample_bilinear`] at the coordinates `at` was found for:
+    /// the same value, bit for bit. A texel beyond this texture's end (a
+    /// footprint of a larger texture) reads as black.
+    #[inline]
+    pub fn sample_footprint(&self, at: &Footprint) -> Vec3 {
+        let t = |k: usize| self.texels.get(at.corners[k]).copied().unwrap_or(Vec3::ZERO);
+        let top = t(0).lerp(t(1), at.fx);
+        let bottom = t(2).lerp(t(3), at.fx);
+        top.lerp(bottom, at.fy)
     }
 
     /// Bilinear alpha at `uv` (1 without an alpha channel).
@@ -222,6 +251,17 @@ impl Texture {
         let lerp = |p: f32, q: f32, f: f32| p + (q - p) * f;
         lerp(lerp(al[a], al[b], fx), lerp(al[c], al[d], fx), fy)
     }
+}
+
+/// The four texels of one bilinear lookup and their weights
+/// ([`Texture::footprint_at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Footprint {
+    /// Texel indices: top left, top right, bottom left, bottom right.
+    corners: [usize; 4],
+    /// Fractions across and down.
+    fx: f32,
+    fy: f32,
 }
 
 /// `wrap(i, n, mode)` and `wrap(i.saturating_add(1), n, mode)`, the two
@@ -276,6 +316,45 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_lookup_from_its_footprint_is_the_bilinear_lookup_bit_for_bit() {
+        let mut rng = lucent_geom::Pcg32::new(0x51ed_270b, 3);
+        let (w, hgt) = (7u32, 5u32);
+        let texels: Vec<Vec3> = (0..w * hgt)
+            .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
+            .collect();
+        let mut t = Texture::new(w, hgt, texels).expect("35 texels");
+        let mut uvs = vec![
+            Vec2::new(f32::NAN, 0.5),
+            Vec2::new(f32::INFINITY, -f32::INFINITY),
+            Vec2::new(1e30, -1e30),
+            Vec2::ZERO,
+            Vec2::ONE,
+        ];
+        for _ in 0..2_000 {
+            uvs.push(Vec2::new(rng.next_f32() * 6.0 - 3.0, rng.next_f32() * 6.0 - 3.0));
+        }
+        for mode in [WrapMode::Repeat, WrapMode::Clamp, WrapMode::MirroredRepeat] {
+            t.wrap = mode;
+            t.wrap_v = mode;
+            for &uv in &uvs {
+                let at = t.footprint_at(uv);
+                assert_eq!(t.footprint_texels(&at).count(), 4);
+                assert_eq!(
+                    t.sample_footprint(&at).to_array().map(f32::to_bits),
+                    t.sample_bilinear(uv).to_array().map(f32::to_bits),
+                    "{uv} {mode:?}"
+                );
+            }
+        }
+        // A footprint of a larger texture reads black where it runs past
+        // this one's texels, and never panics.
+        let big = Texture::new(64, 64, vec![Vec3::ONE; 64 * 64]).expect("4096 texels");
+        let far = big.footprint_at(Vec2::new(0.99, 0.01));
+        assert!(t.footprint_texels(&far).count() < 4);
+        assert_eq!(t.sample_footprint(&far), Vec3::ZERO);
     }
 
     /// 2x2 texture: top row red, green; bottom row blue, white.
