@@ -160,27 +160,6 @@ impl Texture {
         self.texels[self.index(x, y)]
     }
 
-    /// The four texels around the transformed `uv` and the bilinear
-    /// weights, as texel indices `[top left, top right, bottom left,
-    /// bottom right]` and fractions `(fx, fy)`.
-    #[inline]
-    fn footprint(&self, uv: Vec2) -> ([usize; 4], f32, f32) {
-        let uv = self.transform(uv);
-        let u = if uv.x.is_finite() { uv.x } else { 0.0 };
-        let v = if uv.y.is_finite() { uv.y } else { 0.0 };
-        // Continuous texel coordinates with texel centres at integers.
-        let x = u * self.width as f32 - 0.5;
-        let y = (1.0 - v) * self.height as f32 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        // `as i64` saturates, so huge coordinates cannot overflow below.
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let (x0, x1) = wrap_pair(x0, self.width, self.wrap);
-        let (y0, y1) = wrap_pair(y0, self.height, self.wrap_v);
-        let w = self.width as usize;
-        ([y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1], fx, fy)
-    }
-
     /// The texture coordinates the lookup of `uv` reads.
     #[inline]
     pub fn transform(&self, uv: Vec2) -> Vec2 {
@@ -198,11 +177,7 @@ impl Texture {
     /// `uv` (S6). Non-finite coordinates read as 0.
     #[inline]
     pub fn sample_bilinear(&self, uv: Vec2) -> Vec3 {
-        let ([a, b, c, d], fx, fy) = self.footprint(uv);
-        let t = &self.texels;
-        let top = t[a].lerp(t[b], fx);
-        let bottom = t[c].lerp(t[d], fx);
-        top.lerp(bottom, fy)
+        self.sample_footprint(&self.footprint_at(uv))
     }
 
     /// Where [`Texture::sample_bilinear`] reads at `uv`, found once: for a
@@ -221,8 +196,24 @@ impl Texture {
     /// ```
     #[inline]
     pub fn footprint_at(&self, uv: Vec2) -> Footprint {
-        let (corners, fx, fy) = self.footprint(uv);
-        Footprint { corners, fx, fy }
+        let uv = self.transform(uv);
+        let u = if uv.x.is_finite() { uv.x } else { 0.0 };
+        let v = if uv.y.is_finite() { uv.y } else { 0.0 };
+        // Continuous texel coordinates with texel centres at integers.
+        let x = u * self.width as f32 - 0.5;
+        let y = (1.0 - v) * self.height as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        // `as i64` saturates, so huge coordinates cannot overflow below.
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let (x0, x1) = wrap_pair(x0, self.width, self.wrap);
+        let (y0, y1) = wrap_pair(y0, self.height, self.wrap_v);
+        let w = self.width as usize;
+        Footprint {
+            corners: [y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1],
+            fx,
+            fy,
+        }
     }
 
     /// The four texels a lookup of `at` reads (top left, top right, bottom
@@ -232,9 +223,10 @@ impl Texture {
         at.corners.iter().filter_map(|&i| self.texels.get(i))
     }
 
-    /// [`Texture::sample_bilinear`] at the coordinates `at` was found for:
-    /// the same value, bit for bit. A texel beyond this texture's end (a
-    /// footprint of a larger texture) reads as black.
+    /// The bilinear interpolation of `at`'s four texels:
+    /// [`Texture::sample_bilinear`] at the coordinates `at` was found for.
+    /// A texel beyond this texture's end (a footprint of a larger texture)
+    /// reads as black.
     #[inline]
     pub fn sample_footprint(&self, at: &Footprint) -> Vec3 {
         let t = |k: usize| self.texels.get(at.corners[k]).copied().unwrap_or(Vec3::ZERO);
@@ -247,9 +239,10 @@ impl Texture {
     #[inline]
     pub fn sample_alpha(&self, uv: Vec2) -> f32 {
         let Some(al) = &self.alpha else { return 1.0 };
-        let ([a, b, c, d], fx, fy) = self.footprint(uv);
+        let Footprint { corners, fx, fy } = self.footprint_at(uv);
+        let a = |k: usize| al.get(corners[k]).copied().unwrap_or(1.0);
         let lerp = |p: f32, q: f32, f: f32| p + (q - p) * f;
-        lerp(lerp(al[a], al[b], fx), lerp(al[c], al[d], fx), fy)
+        lerp(lerp(a(0), a(1), fx), lerp(a(2), a(3), fx), fy)
     }
 }
 
@@ -319,7 +312,7 @@ mod tests {
     }
 
     #[test]
-    fn a_lookup_from_its_footprint_is_the_bilinear_lookup_bit_for_bit() {
+    fn a_lookup_from_its_footprint_is_the_bilinear_lookup_of_the_wrapped_texels_bit_for_bit() {
         let mut rng = lucent_geom::Pcg32::new(0x51ed_270b, 3);
         let (w, hgt) = (7u32, 5u32);
         let texels: Vec<Vec3> = (0..w * hgt)
@@ -342,9 +335,29 @@ mod tests {
             for &uv in &uvs {
                 let at = t.footprint_at(uv);
                 assert_eq!(t.footprint_texels(&at).count(), 4);
+                // The reference: the four texels wrapped one by one
+                // (`Texture::texel`), interpolated in the same order.
+                let s = t.transform(uv);
+                let (u, v) = (
+                    if s.x.is_finite() { s.x } else { 0.0 },
+                    if s.y.is_finite() { s.y } else { 0.0 },
+                );
+                let (x, y) = (u * w as f32 - 0.5, (1.0 - v) * hgt as f32 - 0.5);
+                let (x0, y0) = (x.floor(), y.floor());
+                let (fx, fy) = (x - x0, y - y0);
+                let (x0, y0) = (x0 as i64, y0 as i64);
+                let (x1, y1) = (x0.saturating_add(1), y0.saturating_add(1));
+                let top = t.texel(x0, y0).lerp(t.texel(x1, y0), fx);
+                let bottom = t.texel(x0, y1).lerp(t.texel(x1, y1), fx);
+                let want = top.lerp(bottom, fy).to_array().map(f32::to_bits);
                 assert_eq!(
                     t.sample_footprint(&at).to_array().map(f32::to_bits),
+                    want,
+                    "{uv} {mode:?}"
+                );
+                assert_eq!(
                     t.sample_bilinear(uv).to_array().map(f32::to_bits),
+                    want,
                     "{uv} {mode:?}"
                 );
             }
