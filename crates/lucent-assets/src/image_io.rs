@@ -73,28 +73,27 @@ pub fn texture_from_bytes_as(bytes: &[u8], path: &Path, space: ColorSpace) -> Re
             | DynamicImage::ImageLuma8(_)
             | DynamicImage::ImageLumaA8(_)
     );
-    let (texels, alpha): (Vec<Vec3>, Option<Vec<f32>>) = if eight_bit {
+    let size_error = |e: lucent_shading::TextureError| AssetError::format(path, e.to_string());
+    let (texture, alpha) = if eight_bit {
+        // The bytes themselves, decoded at each lookup through the same
+        // table (a quarter of the floats' memory, the same values).
         let lut: &[f32; 256] = match space {
             ColorSpace::Srgb => srgb_lut(),
             ColorSpace::Linear => linear_lut(),
         };
-        if has_alpha {
+        let (rgb, alpha): (Vec<[u8; 3]>, Option<Vec<f32>>) = if has_alpha {
             let rgba = img.to_rgba8();
-            let texels = rgba
-                .pixels()
-                .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
-                .collect();
+            let rgb = rgba.pixels().map(|p| [p[0], p[1], p[2]]).collect();
             let opaque = rgba.pixels().all(|p| p[3] == 255);
             let alpha = (!opaque).then(|| rgba.pixels().map(|p| f32::from(p[3]) / 255.0).collect());
-            (texels, alpha)
+            (rgb, alpha)
         } else {
-            let texels = img
-                .to_rgb8()
-                .pixels()
-                .map(|p| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]))
-                .collect();
-            (texels, None)
-        }
+            (img.to_rgb8().pixels().map(|p| p.0).collect(), None)
+        };
+        (
+            Texture::from_bytes(width, height, rgb, *lut).map_err(size_error)?,
+            alpha,
+        )
     } else {
         let decode = |x: f32| match space {
             ColorSpace::Srgb => srgb_to_linear(x),
@@ -107,13 +106,10 @@ pub fn texture_from_bytes_as(bytes: &[u8], path: &Path, space: ColorSpace) -> Re
             .collect();
         let opaque = rgba.pixels().all(|p| p[3] >= 1.0);
         let alpha = (has_alpha && !opaque).then(|| rgba.pixels().map(|p| p[3]).collect());
-        (texels, alpha)
+        (Texture::new(width, height, texels).map_err(size_error)?, alpha)
     };
-    let texture = Texture::new(width, height, texels).map_err(|e| AssetError::format(path, e.to_string()))?;
     match alpha {
-        Some(alpha) => texture
-            .with_alpha(alpha)
-            .map_err(|e| AssetError::format(path, e.to_string())),
+        Some(alpha) => texture.with_alpha(alpha).map_err(size_error),
         None => Ok(texture),
     }
 }

@@ -326,6 +326,27 @@ pub(crate) fn prefetch_record<T>(value: &T) {
     let _ = value;
 }
 
+/// Asks the caches for the line holding `at` and the one holding its
+/// `len - 1`th byte after (a texel of a texture, as
+/// `Texture::footprint_places` names it). A hint only: the addresses are
+/// never read through.
+#[inline(always)]
+pub(crate) fn prefetch_bytes(at: *const u8, len: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        // SAFETY: a prefetch reads nothing and never faults, whatever the
+        // address; the second address is made with `wrapping_add`, and SSE
+        // (which has the instruction) is part of every x86-64.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(at.cast::<i8>());
+            _mm_prefetch::<_MM_HINT_T0>(at.wrapping_add(len.saturating_sub(1)).cast::<i8>());
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (at, len);
+}
+
 /// Whether this processor has every feature [`run_avx512`] is compiled
 /// with.
 #[cfg(target_arch = "x86_64")]

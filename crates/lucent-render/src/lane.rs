@@ -1477,8 +1477,8 @@ impl<'a> LaneTracer<'a> {
                 .and_then(|m| m.diffuse_map.as_deref())
             {
                 let footprint = tex.footprint_at(Vec2::new(h.uv[0][i], h.uv[1][i]));
-                for texel in tex.footprint_texels(&footprint) {
-                    crate::isa::prefetch_record(texel);
+                for (at, len) in tex.footprint_places(&footprint) {
+                    crate::isa::prefetch_bytes(at, len);
                 }
                 at[i] = Some((tex, footprint));
             }

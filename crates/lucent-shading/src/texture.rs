@@ -1,7 +1,9 @@
 //! Textures: linear-RGB texels (plus an optional alpha channel) with
 //! bilinear filtering (the report's S6), per-axis wrap modes and a
 //! texture-coordinate transform (MTL `-s`/`-o`, glTF
-//! `KHR_texture_transform`).
+//! `KHR_texture_transform`). Texels are floats, or for an 8-bit image its
+//! bytes and the table that decodes them ([`Texture::from_bytes`]): the
+//! same values in a quarter of the memory.
 
 use lucent_geom::{Vec2, Vec3};
 use std::fmt;
@@ -32,7 +34,7 @@ pub enum WrapMode {
 pub struct Texture {
     width: u32,
     height: u32,
-    texels: Vec<Vec3>,
+    texels: Texels,
     /// Linear alpha per texel, when the image has an alpha channel.
     alpha: Option<Vec<f32>>,
     /// How `u` outside `[0, 1]` is mapped (and `v` too, unless `wrap_v`
@@ -46,6 +48,49 @@ pub struct Texture {
     pub uv_rotation: f32,
     /// Offset added last (MTL `-o`).
     pub uv_offset: Vec2,
+}
+
+/// A texture's texels, row-major.
+#[derive(Clone, Debug, PartialEq)]
+enum Texels {
+    /// Linear RGB.
+    Float(Vec<Vec3>),
+    /// Eight bits a channel: texel `i` is `table[rgb[i][c]]` in channel `c`.
+    Bytes { rgb: Vec<[u8; 3]>, table: Box<[f32; 256]> },
+}
+
+impl Texels {
+    fn len(&self) -> usize {
+        match self {
+            Texels::Float(t) => t.len(),
+            Texels::Bytes { rgb, .. } => rgb.len(),
+        }
+    }
+
+    /// Texel `i`, if there is one.
+    #[inline]
+    fn get(&self, i: usize) -> Option<Vec3> {
+        match self {
+            Texels::Float(t) => t.get(i).copied(),
+            Texels::Bytes { rgb, table } => rgb.get(i).map(|b| {
+                Vec3::new(
+                    table[usize::from(b[0])],
+                    table[usize::from(b[1])],
+                    table[usize::from(b[2])],
+                )
+            }),
+        }
+    }
+
+    /// Where texel `i` starts in memory and its size in bytes, if there is
+    /// one.
+    #[inline]
+    fn place(&self, i: usize) -> Option<(*const u8, usize)> {
+        match self {
+            Texels::Float(t) => t.get(i).map(|v| ((v as *const Vec3).cast::<u8>(), size_of::<Vec3>())),
+            Texels::Bytes { rgb, .. } => rgb.get(i).map(|b| (b.as_ptr(), 3)),
+        }
+    }
 }
 
 /// Why a texture could not be made.
@@ -85,12 +130,41 @@ impl Texture {
                 n_texels: texels.len(),
             });
         }
-        Ok(Self::checked(width, height, texels))
+        Ok(Self::checked(width, height, Texels::Float(texels)))
+    }
+
+    /// A texture of 8-bit texels (row-major, row 0 at the top), each
+    /// channel's byte `b` standing for `table[b]`: an image file's bytes
+    /// and its transfer function (sRGB or linear), decoded at each lookup.
+    /// The texels read exactly as [`Texture::new`]'s of the decoded floats
+    /// would, in a quarter of the memory (3 bytes a texel instead of 12).
+    /// Fails unless there are exactly `width * height > 0` texels.
+    ///
+    /// ```
+    /// use lucent_shading::Texture;
+    /// use lucent_geom::{Vec2, Vec3};
+    /// let table: [f32; 256] = std::array::from_fn(|b| b as f32 / 255.0);
+    /// let bytes = Texture::from_bytes(2, 1, vec![[255, 0, 0], [0, 51, 255]], table).unwrap();
+    /// let floats = Texture::new(2, 1, vec![Vec3::X, Vec3::new(0.0, 0.2, 1.0)]).unwrap();
+    /// assert_eq!(bytes.texel(1, 0), floats.texel(1, 0));
+    /// let uv = Vec2::new(0.3, 0.5);
+    /// assert_eq!(bytes.sample_bilinear(uv), floats.sample_bilinear(uv));
+    /// ```
+    pub fn from_bytes(width: u32, height: u32, rgb: Vec<[u8; 3]>, table: [f32; 256]) -> Result<Self, TextureError> {
+        if width == 0 || height == 0 || rgb.len() as u64 != width as u64 * height as u64 {
+            return Err(TextureError {
+                width,
+                height,
+                n_texels: rgb.len(),
+            });
+        }
+        let table = Box::new(table);
+        Ok(Self::checked(width, height, Texels::Bytes { rgb, table }))
     }
 
     /// The texture of texels already checked to be `width * height > 0`,
     /// with no alpha, repeating, untransformed.
-    fn checked(width: u32, height: u32, texels: Vec<Vec3>) -> Self {
+    fn checked(width: u32, height: u32, texels: Texels) -> Self {
         Self {
             width,
             height,
@@ -132,7 +206,7 @@ impl Texture {
 
     /// A 1x1 texture of one colour (cannot fail).
     pub fn constant(color: Vec3) -> Self {
-        Self::checked(1, 1, vec![color])
+        Self::checked(1, 1, Texels::Float(vec![color]))
     }
 
     /// Width in texels.
@@ -157,7 +231,8 @@ impl Texture {
     /// The texel at column `x`, row `y` (row 0 at the top), after wrapping.
     #[inline]
     pub fn texel(&self, x: i64, y: i64) -> Vec3 {
-        self.texels[self.index(x, y)]
+        // Wrapped, the index is always inside.
+        self.texels.get(self.index(x, y)).unwrap_or(Vec3::ZERO)
     }
 
     /// The texture coordinates the lookup of `uv` reads.
@@ -182,7 +257,7 @@ impl Texture {
 
     /// Where [`Texture::sample_bilinear`] reads at `uv`, found once: for a
     /// caller that asks for the texels' cache lines ahead of the lookup
-    /// ([`Texture::footprint_texels`]), then looks up
+    /// ([`Texture::footprint_places`]), then looks up
     /// ([`Texture::sample_footprint`]) without finding them again.
     ///
     /// ```
@@ -191,7 +266,7 @@ impl Texture {
     /// let t = Texture::new(2, 1, vec![Vec3::X, Vec3::Y]).unwrap();
     /// let uv = Vec2::new(0.6, 0.5);
     /// let at = t.footprint_at(uv);
-    /// assert_eq!(t.footprint_texels(&at).count(), 4);
+    /// assert_eq!(t.footprint_places(&at).count(), 4);
     /// assert_eq!(t.sample_footprint(&at), t.sample_bilinear(uv));
     /// ```
     #[inline]
@@ -216,11 +291,14 @@ impl Texture {
         }
     }
 
-    /// The four texels a lookup of `at` reads (top left, top right, bottom
-    /// left, bottom right); none where `at` came from a larger texture.
+    /// Where in memory the four texels a lookup of `at` reads lie (top
+    /// left, top right, bottom left, bottom right): each one's first byte
+    /// and size, for a caller that asks the caches for them ahead of the
+    /// lookup (the addresses are hints, never to be read through); none
+    /// where `at` came from a larger texture.
     #[inline]
-    pub fn footprint_texels(&self, at: &Footprint) -> impl Iterator<Item = &Vec3> {
-        at.corners.iter().filter_map(|&i| self.texels.get(i))
+    pub fn footprint_places(&self, at: &Footprint) -> impl Iterator<Item = (*const u8, usize)> {
+        at.corners.iter().filter_map(|&i| self.texels.place(i))
     }
 
     /// The bilinear interpolation of `at`'s four texels:
@@ -229,7 +307,7 @@ impl Texture {
     /// reads as black.
     #[inline]
     pub fn sample_footprint(&self, at: &Footprint) -> Vec3 {
-        let t = |k: usize| self.texels.get(at.corners[k]).copied().unwrap_or(Vec3::ZERO);
+        let t = |k: usize| self.texels.get(at.corners[k]).unwrap_or(Vec3::ZERO);
         let top = t(0).lerp(t(1), at.fx);
         let bottom = t(2).lerp(t(3), at.fx);
         top.lerp(bottom, at.fy)
@@ -334,7 +412,7 @@ mod tests {
             t.wrap_v = mode;
             for &uv in &uvs {
                 let at = t.footprint_at(uv);
-                assert_eq!(t.footprint_texels(&at).count(), 4);
+                assert_eq!(t.footprint_places(&at).count(), 4);
                 // The reference: the four texels wrapped one by one
                 // (`Texture::texel`), interpolated in the same order.
                 let s = t.transform(uv);
@@ -366,8 +444,59 @@ mod tests {
         // this one's texels, and never panics.
         let big = Texture::new(64, 64, vec![Vec3::ONE; 64 * 64]).expect("4096 texels");
         let far = big.footprint_at(Vec2::new(0.99, 0.01));
-        assert!(t.footprint_texels(&far).count() < 4);
+        assert!(t.footprint_places(&far).count() < 4);
         assert_eq!(t.sample_footprint(&far), Vec3::ZERO);
+    }
+
+    #[test]
+    fn an_eight_bit_texture_reads_as_the_float_texture_of_its_decoded_bytes_bit_for_bit() {
+        let mut rng = lucent_geom::Pcg32::new(0x0bad_cafe, 5);
+        // A table like sRGB's (not a straight line), and odd sizes.
+        let table: [f32; 256] = std::array::from_fn(|b| (b as f32 / 255.0).powf(2.2));
+        let (w, hgt) = (9u32, 4u32);
+        let bytes: Vec<[u8; 3]> = (0..w * hgt)
+            .map(|_| [0; 3].map(|_: u8| (rng.next_u32() >> 24) as u8))
+            .collect();
+        let floats: Vec<Vec3> = bytes
+            .iter()
+            .map(|b| Vec3::new(table[b[0] as usize], table[b[1] as usize], table[b[2] as usize]))
+            .collect();
+        let mut b = Texture::from_bytes(w, hgt, bytes, table).expect("36 texels");
+        let mut f = Texture::new(w, hgt, floats).expect("36 texels");
+        for y in -3..8 {
+            for x in -3..12 {
+                assert_eq!(b.texel(x, y), f.texel(x, y), "{x} {y}");
+            }
+        }
+        for mode in [WrapMode::Repeat, WrapMode::Clamp, WrapMode::MirroredRepeat] {
+            (b.wrap, b.wrap_v, f.wrap, f.wrap_v) = (mode, WrapMode::Clamp, mode, WrapMode::Clamp);
+            for _ in 0..2_000 {
+                let uv = Vec2::new(rng.next_f32() * 4.0 - 2.0, rng.next_f32() * 4.0 - 2.0);
+                let (bs, fs) = (b.sample_bilinear(uv), f.sample_bilinear(uv));
+                assert_eq!(
+                    bs.to_array().map(f32::to_bits),
+                    fs.to_array().map(f32::to_bits),
+                    "{uv} {mode:?}"
+                );
+                let at = b.footprint_at(uv);
+                assert_eq!(at, f.footprint_at(uv));
+                assert_eq!(b.sample_footprint(&at), bs);
+                // Each place is a texel's 3 bytes (12 for floats).
+                assert!(b.footprint_places(&at).all(|(_, n)| n == 3));
+                assert!(f.footprint_places(&at).all(|(_, n)| n == 12));
+            }
+        }
+        // Alpha goes with either kind; a wrong count is an error, not a panic.
+        assert!(b.clone().with_alpha(vec![0.5; 36]).expect("36 alphas").has_alpha());
+        assert!(b.with_alpha(vec![0.5; 35]).is_err());
+        let short = Texture::from_bytes(3, 3, vec![[0; 3]; 8], table);
+        assert_eq!(short.map(|_| ()).map_err(|e| e.n_texels), Err(8));
+        assert!(Texture::from_bytes(0, 3, Vec::new(), table).is_err());
+        // A footprint of a larger texture reads black past the end.
+        let big = Texture::new(64, 64, vec![Vec3::ONE; 64 * 64]).expect("4096 texels");
+        let far = big.footprint_at(Vec2::new(0.99, 0.01));
+        let small = Texture::from_bytes(2, 2, vec![[255; 3]; 4], table).expect("4 texels");
+        assert_eq!(small.sample_footprint(&far), Vec3::ZERO);
     }
 
     /// 2x2 texture: top row red, green; bottom row blue, white.
