@@ -28,7 +28,9 @@
 //!    found and its MIS weight; seven random numbers per lane from sixteen
 //!    PCG32 generators stepped together (64-bit multiplies in lanes); on a
 //!    textured triangle the texture coordinates (in lanes, from a table of
-//!    each triangle's corner coordinates, prefetched with its record) and
+//!    the textured triangles' corner coordinates on the flat tree, each
+//!    prefetched as its record is read; per mesh triangle on the two-level
+//!    tree, prefetched with the record) and
 //!    the albedo times the diffuse
 //!    texture there (a bilinear lookup per lane);
 //! 3. in lanes, for the lanes at a plain Lambertian vertex: the shading
@@ -201,9 +203,12 @@ struct Tri {
     /// A dielectric's index inside over outside (of the glass of a
     /// [`KIND_GLASS`] or [`KIND_DIFFUSE_GLASS`] material).
     eta: f32,
-    /// 1 when the material has a diffuse texture (its albedo is the
-    /// untextured one, times the texture at the hit's coordinates).
-    textured: u32,
+    /// Where the material has a diffuse texture (its albedo is the
+    /// untextured one, times the texture at the hit's coordinates): the
+    /// index of the triangle's corner coordinates in the flat tables'
+    /// `uvs`, which hold the textured triangles' alone after a first entry
+    /// of zeros; else 0, that entry.
+    uv_at: u32,
 }
 
 /// A plain Lambertian BSDF.
@@ -373,9 +378,10 @@ trait Geometry {
     /// light set (or [`NONE`]) and the BSDF's kind.
     fn interact(&self, h: &mut Hits, i: usize) -> (u32, u32);
 
-    /// Per record, the corners' texture coordinates (u0 v0 u1 v1 u2 v2)
-    /// where the material has a diffuse texture; empty where no material
-    /// has one.
+    /// Corners' texture coordinates (u0 v0 u1 v1 u2 v2) of the textured
+    /// records, each where a hit's `Hits::uv_at` points
+    /// ([`Geometry::interact`] sets it; an untextured record's points at
+    /// zeros); empty where no material has a diffuse texture.
     fn uvs(&self) -> &[[f32; 6]];
 }
 
@@ -385,8 +391,9 @@ struct FlatGeometry<'a> {
     flat: &'a FlatBvh,
     /// Per flattened triangle of `flat`.
     tris: &'a [Tri],
-    /// Per flattened triangle, its corners' texture coordinates, or empty
-    /// ([`Geometry::uvs`]).
+    /// Zeros, then the textured triangles' corner texture coordinates,
+    /// each where its record's `uv_at` says ([`Geometry::uvs`]); empty
+    /// without a textured triangle.
     uvs: &'a [[f32; 6]],
 }
 
@@ -451,9 +458,6 @@ impl Geometry for FlatGeometry<'_> {
         if let Some(t) = self.tris.get(hit.prim as usize) {
             crate::isa::prefetch_record(t);
         }
-        if let Some(uv) = self.uvs.get(hit.prim as usize) {
-            crate::isa::prefetch_record(uv);
-        }
         h.u[i] = hit.u;
         h.v[i] = hit.v;
     }
@@ -486,7 +490,11 @@ impl Geometry for FlatGeometry<'_> {
         h.magnitude[i] = t.magnitude;
         h.eta[i] = t.eta;
         h.material[i] = t.material;
-        h.textured[i] = t.textured != 0;
+        h.textured[i] = t.uv_at != 0;
+        h.uv_at[i] = t.uv_at;
+        if let Some(uv) = self.uvs.get(t.uv_at as usize) {
+            crate::isa::prefetch_record(uv);
+        }
         (t.emitter, t.kind)
     }
 
@@ -622,6 +630,9 @@ struct Hits {
     glass: Lb,
     /// Texture coordinates (where the triangle is textured).
     uv: [Lf; 2],
+    /// The index of the triangle's corner coordinates in the geometry's
+    /// table ([`Geometry::uvs`]; zeros there where it is not textured).
+    uv_at: Lu,
     eta: Lf,
     /// The vertex is shaded by the scalar code.
     scalar: Lb,
@@ -681,6 +692,7 @@ impl Hits {
             delta: [false; LANES],
             glass: [false; LANES],
             uv: [Z; 2],
+            uv_at: [0; LANES],
             eta: Z,
             scalar: [false; LANES],
             glossy: [false; LANES],
@@ -840,20 +852,22 @@ impl<'a> LaneTracer<'a> {
     }
 
     /// The flat tree's records: one per flattened triangle, in render
-    /// space, and their texture coordinates (empty without a texture);
-    /// `None` where one cannot be named.
+    /// space, and the corner texture coordinates of the textured ones
+    /// (each record's `uv_at` names its own); `None` where one cannot be
+    /// named.
     fn flat_records(scene: &RenderScene, flat: &FlatBvh, bsdfs: &[Bsdf]) -> Option<(Vec<Tri>, Vec<[f32; 6]>)> {
-        let any_texture = scene.materials.iter().any(|m| m.diffuse_map.is_some());
         let mut tris = Vec::with_capacity(flat.owners().len());
-        let mut uvs = Vec::with_capacity(if any_texture { flat.owners().len() } else { 0 });
+        // Only the textured triangles' coordinates, so that a hit elsewhere
+        // reads none of them but the first entry's zeros.
+        let mut uvs = Vec::new();
         for &(instance, prim) in flat.owners() {
-            let tri = Self::tri(scene, bsdfs, instance, prim)?;
-            if any_texture {
-                uvs.push(if tri.textured != 0 {
-                    Self::corner_uvs(scene, instance, prim)?
-                } else {
-                    [0.0; 6]
-                });
+            let mut tri = Self::tri(scene, bsdfs, instance, prim)?;
+            if tri.uv_at != 0 {
+                if uvs.is_empty() {
+                    uvs.push([0.0; 6]);
+                }
+                tri.uv_at = u32::try_from(uvs.len()).ok()?;
+                uvs.push(Self::corner_uvs(scene, instance, prim)?);
             }
             tris.push(tri);
         }
@@ -927,7 +941,8 @@ impl<'a> LaneTracer<'a> {
             material: inst.material,
             emitter,
             eta,
-            textured: u32::from(textured),
+            // Textured: `flat_records` puts the index here.
+            uv_at: u32::from(textured),
         })
     }
 
@@ -1451,8 +1466,7 @@ impl<'a> LaneTracer<'a> {
         let mut any = false;
         let mut textured = [false; LANES];
         for i in 0..LANES {
-            let k = (h.tri[i] as usize).min(last);
-            let c = &uvs[k];
+            let c = &uvs[(h.uv_at[i] as usize).min(last)];
             let (u, v) = (h.u[i], h.v[i]);
             let w = 1.0 - u - v;
             h.uv[0][i] = c[0] * w + c[2] * u + c[4] * v;
@@ -3202,11 +3216,12 @@ pub(crate) mod tests {
                     magnitude: [t.magnitude; LANES],
                     albedo: Z3,
                     material: [t.material; LANES],
-                    textured: [t.textured != 0; LANES],
+                    textured: [t.uv_at != 0; LANES],
                     diffuse: [kind == KIND_DIFFUSE; LANES],
                     delta: [false; LANES],
                     glass: [false; LANES],
                     uv: [Z; 2],
+                    uv_at: [t.uv_at; LANES],
                     eta: [t.eta; LANES],
                     scalar: [false; LANES],
                     glossy: [kind == KIND_GLOSSY; LANES],

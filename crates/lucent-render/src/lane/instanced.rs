@@ -325,6 +325,9 @@ impl Geometry for SceneGeometry<'_> {
         h.eta[i] = inst.eta;
         h.material[i] = inst.material;
         h.textured[i] = inst.textured != 0;
+        // The coordinates are kept per mesh triangle (zeros where
+        // untextured), by the record's index.
+        h.uv_at[i] = h.tri[i];
         let prim = h.tri[i].wrapping_sub(inst.base);
         let emitter = if inst.emit_first != NONE && prim < inst.count {
             inst.emit_first.wrapping_add(prim)
