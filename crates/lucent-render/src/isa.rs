@@ -306,30 +306,17 @@ impl LaneIsa {
 /// Asks for the cache lines of a record `value` of at most 128 bytes: its
 /// first and its last byte's (the lane tracer's 128-byte, 64-aligned
 /// triangle records and 24-byte texture coordinates, as soon as a lane's
-/// hit names them: the other lanes' traversals run while the lines
+/// hit or record names them: the other lanes' work runs while the lines
 /// arrive). A hint only.
 #[inline(always)]
 pub(crate) fn prefetch_record<T>(value: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let p = (value as *const T).cast::<i8>();
-        // SAFETY: a prefetch reads nothing and never faults, whatever the
-        // address; the second address is made with `wrapping_add`, and SSE
-        // (which has the instruction) is part of every x86-64.
-        unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(p);
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(size_of::<T>().saturating_sub(1)));
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
+    prefetch_bytes((value as *const T).cast::<u8>(), size_of::<T>());
 }
 
-/// Asks the caches for the line holding `at` and the one holding its
-/// `len - 1`th byte after (a texel of a texture, as
-/// `Texture::footprint_places` names it). A hint only: the addresses are
-/// never read through.
+/// Asks for the cache lines of the `len` bytes from `at` if they span at
+/// most two (a record, or a texel of a texture as
+/// `Texture::footprint_places` names it): the first byte's and the last
+/// one's. A hint only: the addresses are never read through.
 #[inline(always)]
 pub(crate) fn prefetch_bytes(at: *const u8, len: usize) {
     #[cfg(target_arch = "x86_64")]
