@@ -492,7 +492,11 @@ impl Geometry for FlatGeometry<'_> {
         h.material[i] = t.material;
         h.textured[i] = t.uv_at != 0;
         h.uv_at[i] = t.uv_at;
-        if let Some(uv) = self.uvs.get(t.uv_at as usize) {
+        // (Entry 0, an untextured record's zeros, is read often enough to
+        // stay in cache.)
+        if t.uv_at != 0
+            && let Some(uv) = self.uvs.get(t.uv_at as usize)
+        {
             crate::isa::prefetch_record(uv);
         }
         (t.emitter, t.kind)
@@ -861,8 +865,8 @@ impl<'a> LaneTracer<'a> {
         // reads none of them but the first entry's zeros.
         let mut uvs = Vec::new();
         for &(instance, prim) in flat.owners() {
-            let mut tri = Self::tri(scene, bsdfs, instance, prim)?;
-            if tri.uv_at != 0 {
+            let (mut tri, textured) = Self::tri(scene, bsdfs, instance, prim)?;
+            if textured {
                 if uvs.is_empty() {
                     uvs.push([0.0; 6]);
                 }
@@ -891,9 +895,10 @@ impl<'a> LaneTracer<'a> {
         Some([a.x, a.y, b.x, b.y, c.x, c.y])
     }
 
-    /// The record of triangle `prim` of `instance`; `None` for a hit the
-    /// scene cannot name.
-    fn tri(scene: &RenderScene, bsdfs: &[Bsdf], instance: u32, prim: u32) -> Option<Tri> {
+    /// The record of triangle `prim` of `instance` (its `uv_at` 0, for
+    /// [`Self::flat_records`] to set) and whether its albedo is textured;
+    /// `None` for a hit the scene cannot name.
+    fn tri(scene: &RenderScene, bsdfs: &[Bsdf], instance: u32, prim: u32) -> Option<(Tri, bool)> {
         let inst = scene.instances.get(instance as usize)?;
         let mesh = scene.meshes.get(inst.mesh as usize)?;
         let idx = *mesh.indices().get(prim as usize)?;
@@ -927,7 +932,7 @@ impl<'a> LaneTracer<'a> {
             .emitter(instance, prim)
             .filter(|(_, e)| e.radiance != Vec3::ZERO)
             .map_or(NONE, |(i, _)| i);
-        Some(Tri {
+        let tri = Tri {
             p0: corners[0].to_array(),
             e1: (corners[1] - corners[0]).to_array(),
             e2: (corners[2] - corners[0]).to_array(),
@@ -941,9 +946,9 @@ impl<'a> LaneTracer<'a> {
             material: inst.material,
             emitter,
             eta,
-            // Textured: `flat_records` puts the index here.
-            uv_at: u32::from(textured),
-        })
+            uv_at: 0,
+        };
+        Some((tri, textured))
     }
 
     /// Whether the tracer runs on the two-level tree (else on the flat
