@@ -570,7 +570,7 @@ impl<H: Copy> CameraRays<H> {
     /// would have (the same lanes, the same bits), without a branch per
     /// path in the refill. Without AOVs (whose recorders are per lane).
     #[inline(always)]
-    fn settle_sky<O: PathOut + ?Sized>(&mut self, radiance: [f32; 3], out: &mut O, stats: &mut RayStats) {
+    fn settle_sky(&mut self, radiance: [f32; 3], out: &mut [Vec3], stats: &mut RayStats) {
         let mut kept = 0;
         for k in self.at..self.len.min(LANES) {
             if self.hit[k].is_some() {
@@ -581,37 +581,14 @@ impl<H: Copy> CameraRays<H> {
                 self.hit[kept] = self.hit[k];
                 kept += 1;
             } else {
-                out.put(self.id[k], Vec3::from(radiance));
+                if let Some(slot) = out.get_mut(self.id[k] as usize) {
+                    *slot = Vec3::from(radiance);
+                }
                 stats.primary += 1;
             }
         }
         self.at = 0;
         self.len = kept;
-    }
-}
-
-/// Where the lane loop hands each path's radiance as the path ends: a
-/// slice indexed by path (`[Vec3]`), or straight into the pixels' sums
-/// (`render::PixelSums`), whose exact sums do not depend on the order the
-/// paths end in.
-pub(crate) trait PathOut {
-    /// The paths in the pool.
-    fn paths(&self) -> usize;
-    /// Path `id` ended with radiance `v` (an `id` beyond the pool is
-    /// ignored).
-    fn put(&mut self, id: u32, v: Vec3);
-}
-
-impl PathOut for [Vec3] {
-    #[inline(always)]
-    fn paths(&self) -> usize {
-        self.len()
-    }
-    #[inline(always)]
-    fn put(&mut self, id: u32, v: Vec3) {
-        if let Some(slot) = self.get_mut(id as usize) {
-            *slot = v;
-        }
     }
 }
 
@@ -755,10 +732,11 @@ impl AovLanes<'_> {
         }
     }
 
-    /// Lane `i`'s path `id` ended with the radiance `radiance` (what it
-    /// handed over): its sample is complete.
+    /// Lane `i`'s path `id` ended with the radiance it handed over to
+    /// `out`: its sample is complete.
     #[inline(always)]
-    fn finish(&mut self, i: usize, id: u32, radiance: Vec3) {
+    fn finish(&mut self, i: usize, id: u32, out: &[Vec3]) {
+        let radiance = out.get(id as usize).copied().unwrap_or(Vec3::ZERO);
         self.rec[i].end(&mut self.sample[i], radiance);
         if let Some(slot) = self.out.get_mut(id as usize) {
             *slot = self.sample[i];
@@ -979,8 +957,8 @@ impl<'a> LaneTracer<'a> {
         matches!(self.geometry, Geom::Scene(_))
     }
 
-    /// Traces `out.paths()` paths, path `k` from `start(k)` (its camera ray
-    /// and random stream), and hands each one's radiance to `out`,
+    /// Traces `out.len()` paths, path `k` from `start(k)` (its camera ray
+    /// and random stream), and writes each one's radiance to `out[k]`,
     /// with the loop compiled for the two-level tree where `SCENE` is set,
     /// else for the flat one: `SCENE` must be [`Self::on_scene_tree`] (else
     /// nothing is traced and `out` is left as it is), so that a caller
@@ -993,10 +971,10 @@ impl<'a> LaneTracer<'a> {
     /// with a shadow ray of its own; the random numbers and the radiance
     /// are those of the loop without (`aovs` is not read then).
     #[inline(always)]
-    pub(crate) fn trace_aov<const SCENE: bool, const AOV: bool, O: PathOut + ?Sized>(
+    pub(crate) fn trace_aov<const SCENE: bool, const AOV: bool>(
         &self,
         start: impl PathStarts,
-        out: &mut O,
+        out: &mut [Vec3],
         aovs: &mut [AovSample],
         stats: &mut RayStats,
         counts: &mut LaneCounts,
@@ -1007,19 +985,19 @@ impl<'a> LaneTracer<'a> {
             out: aovs,
         };
         match &self.geometry {
-            Geom::Flat(g) if !SCENE => self.trace_in::<_, AOV, O>(g, start, out, &mut rec, stats, counts),
-            Geom::Scene(g) if SCENE => self.trace_in::<_, AOV, O>(g, start, out, &mut rec, stats, counts),
+            Geom::Flat(g) if !SCENE => self.trace_in::<_, AOV>(g, start, out, &mut rec, stats, counts),
+            Geom::Scene(g) if SCENE => self.trace_in::<_, AOV>(g, start, out, &mut rec, stats, counts),
             _ => {}
         }
     }
 
     /// [`Self::trace_aov`] through `geometry`.
     #[inline(always)]
-    fn trace_in<G: Geometry, const AOV: bool, O: PathOut + ?Sized>(
+    fn trace_in<G: Geometry, const AOV: bool>(
         &self,
         geometry: &G,
         start: impl PathStarts,
-        out: &mut O,
+        out: &mut [Vec3],
         rec: &mut AovLanes<'_>,
         stats: &mut RayStats,
         counts: &mut LaneCounts,
@@ -1041,7 +1019,7 @@ impl<'a> LaneTracer<'a> {
             narrow: [false; LANES],
         };
         let mut h = Hits::none();
-        let n = out.paths().min(NONE as usize);
+        let n = out.len().min(NONE as usize);
         let mut next = 0usize;
         let mut camera = CameraRays {
             ray: [Ray::new(Vec3::ZERO, Vec3::Z); LANES],
@@ -1092,10 +1070,10 @@ impl<'a> LaneTracer<'a> {
                     None if sky.is_some() => left[i] = true,
                     None => {
                         let id = paths.id[i];
-                        let (background, radiance) = self.escape(&mut paths, i, rays[i].dir, out);
+                        let background = self.escape(&mut paths, i, rays[i].dir, out);
                         if AOV {
                             rec.miss(i, background);
-                            rec.finish(i, id, radiance);
+                            rec.finish(i, id, out);
                         }
                     }
                 }
@@ -1115,8 +1093,7 @@ impl<'a> LaneTracer<'a> {
                 if AOV {
                     for i in 0..LANES {
                         if left[i] {
-                            let rad = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
-                            rec.finish(i, ids[i], rad);
+                            rec.finish(i, ids[i], out);
                         }
                     }
                 }
@@ -1161,18 +1138,20 @@ impl<'a> LaneTracer<'a> {
                         // A camera ray (throughput 1, no radiance, weight
                         // 1) finds the sky's radiance.
                         (None, Some((radiance, _))) => {
-                            out.put(paths.id[i], Vec3::from(radiance));
+                            if let Some(slot) = out.get_mut(paths.id[i] as usize) {
+                                *slot = Vec3::from(radiance);
+                            }
                             paths.id[i] = NONE;
                             if AOV {
                                 rec.miss(i, Vec3::from(radiance));
-                                rec.finish(i, id, Vec3::from(radiance));
+                                rec.finish(i, id, out);
                             }
                         }
                         (None, None) => {
-                            let (background, radiance) = self.escape(&mut paths, i, ray.dir, out);
+                            let background = self.escape(&mut paths, i, ray.dir, out);
                             if AOV {
                                 rec.miss(i, background);
-                                rec.finish(i, id, radiance);
+                                rec.finish(i, id, out);
                             }
                         }
                     }
@@ -1258,10 +1237,11 @@ impl<'a> LaneTracer<'a> {
             for i in 0..LANES {
                 paths.narrow[i] &= paths.prev_delta[i] || paths.prev_pdf[i] >= NARROW_PDF;
                 if paths.id[i] != NONE && !go_on[i] {
-                    let rad = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
-                    out.put(paths.id[i], rad);
+                    if let Some(slot) = out.get_mut(paths.id[i] as usize) {
+                        *slot = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
+                    }
                     if AOV {
-                        rec.finish(i, paths.id[i], rad);
+                        rec.finish(i, paths.id[i], out);
                     }
                     paths.id[i] = NONE;
                 }
@@ -1275,7 +1255,7 @@ impl<'a> LaneTracer<'a> {
     /// [`Self::escape`] does, in lanes, hand their radiance over and leave
     /// their lanes empty.
     #[inline(always)]
-    fn escape_lanes<O: PathOut + ?Sized>(sky: ([f32; 3], f32), clamp: f32, paths: &mut Paths, left: &Lb, out: &mut O) {
+    fn escape_lanes(sky: ([f32; 3], f32), clamp: f32, paths: &mut Paths, left: &Lb, out: &mut [Vec3]) {
         let (radiance, pdf) = sky;
         let mut add = Z3;
         for i in 0..LANES {
@@ -1296,10 +1276,9 @@ impl<'a> LaneTracer<'a> {
         }
         for i in 0..LANES {
             if left[i] {
-                out.put(
-                    paths.id[i],
-                    Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]),
-                );
+                if let Some(slot) = out.get_mut(paths.id[i] as usize) {
+                    *slot = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
+                }
                 paths.id[i] = NONE;
             }
         }
@@ -1310,9 +1289,9 @@ impl<'a> LaneTracer<'a> {
     /// after a non-delta bounce, as the scalar tracer does), hands its
     /// radiance over and leaves the lane empty; returns the environment's
     /// radiance along `dir` (black without one), the background an AOV
-    /// render records, and the radiance handed over.
+    /// render records.
     #[inline(never)]
-    fn escape<O: PathOut + ?Sized>(&self, paths: &mut Paths, i: usize, dir: Vec3, out: &mut O) -> (Vec3, Vec3) {
+    fn escape(&self, paths: &mut Paths, i: usize, dir: Vec3, out: &mut [Vec3]) -> Vec3 {
         let lights = &self.scene.light_set;
         let mut rad = Vec3::new(paths.rad[0][i], paths.rad[1][i], paths.rad[2][i]);
         let mut le = Vec3::ZERO;
@@ -1327,9 +1306,11 @@ impl<'a> LaneTracer<'a> {
             let add = thr * le * w;
             rad += add * clamp_scale(self.clamp_indirect, add.to_array(), paths.depth[i] >= 2);
         }
-        out.put(paths.id[i], rad);
+        if let Some(slot) = out.get_mut(paths.id[i] as usize) {
+            *slot = rad;
+        }
         paths.id[i] = NONE;
-        (le, rad)
+        le
     }
 
     /// Lane `i`'s BSDF at its hit: its material's plain one, or where the
@@ -3395,11 +3376,11 @@ pub(crate) mod tests {
                 let rad = paths.rad;
                 let mut out = vec![Vec3::NAN; 500 * LANES];
                 let mut want = vec![Vec3::NAN; 500 * LANES];
-                LaneTracer::escape_lanes(sky, lt.clamp_indirect, &mut paths, &left, &mut out[..]);
+                LaneTracer::escape_lanes(sky, lt.clamp_indirect, &mut paths, &left, &mut out);
                 for i in 0..LANES {
                     if left[i] {
                         let dir = Vec3::new(alone.d[0][i], alone.d[1][i], alone.d[2][i]);
-                        lt.escape(&mut alone, i, dir, &mut want[..]);
+                        lt.escape(&mut alone, i, dir, &mut want);
                     }
                 }
                 assert_eq!(paths.id, alone.id);

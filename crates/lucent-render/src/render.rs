@@ -3,7 +3,7 @@
 use crate::aov::{AovFilm, AovSample, DeltaLightSums, SpecularSums};
 use crate::flat::TracedTree;
 use crate::isa::{Isa, Kernel, LaneIsa};
-use crate::lane::{LANES, LaneCounts, LaneTracer, PathOut, PathStarts};
+use crate::lane::{LANES, LaneCounts, LaneTracer, PathStarts};
 use crate::path::PathTracer;
 use crate::whitted::Whitted;
 use crate::{ExactRgb, Film, Integrator, PinholeCamera, RenderScene, RenderSettings};
@@ -556,39 +556,17 @@ pub(crate) fn lane_pixels(
     pixels: &mut [ExactRgb],
     samples: Range<u32>,
 ) -> (RayStats, LaneCounts) {
+    let n = samples.len();
     let at: Vec<(u32, u32)> = (0..pixels.len() as u32).map(|c| (col0 + c, row)).collect();
-    let mut sums = PixelSums {
-        pixels,
-        n: samples.len(),
-        isa: sampler.isa,
-    };
-    if samples.is_empty() {
-        return (RayStats::default(), LaneCounts::default());
-    }
-    run_lanes::<false, _>(lane_isa, tracer, sampler, &at, samples, &mut sums, &mut [])
-}
-
-/// The pixels' sums as a lane loop's [`PathOut`]: path `k` is a sample of
-/// pixel `k / n`, added to its sum as the path ends (the exact sums do not
-/// depend on the order), in `isa`'s copy of the conversion.
-struct PixelSums<'p> {
-    pixels: &'p mut [ExactRgb],
-    /// Samples per pixel.
-    n: usize,
-    isa: Isa,
-}
-
-impl PathOut for PixelSums<'_> {
-    #[inline(always)]
-    fn paths(&self) -> usize {
-        self.pixels.len() * self.n
-    }
-    #[inline(always)]
-    fn put(&mut self, id: u32, v: Vec3) {
-        if let Some(px) = self.pixels.get_mut(id as usize / self.n.max(1)) {
-            self.isa.add_sample(px, v);
+    let (radiance, stats, counts) = lane_samples(lane_isa, tracer, sampler, &at, samples);
+    if n > 0 {
+        for (px, values) in pixels.iter_mut().zip(radiance.chunks(n)) {
+            for &v in values {
+                sampler.isa.add_sample(px, v);
+            }
         }
     }
+    (stats, counts)
 }
 
 /// Samples `samples` of each pixel (column, row) of `pixels`, through the
@@ -620,47 +598,28 @@ pub(crate) fn lane_samples_aov<const AOV: bool>(
     let n = pixels.len() * samples.len();
     let mut radiance = vec![Vec3::ZERO; n];
     let mut aovs = if AOV { vec![AovSample::default(); n] } else { Vec::new() };
-    let (stats, counts) = run_lanes::<AOV, _>(lane_isa, tracer, sampler, pixels, samples, &mut radiance[..], &mut aovs);
+    let (out, rec) = (&mut radiance, &mut aovs);
+    let (stats, counts) = if tracer.on_scene_tree() {
+        lane_isa.run(LanePixels::<true, AOV>::of(tracer, sampler, pixels, samples, out, rec))
+    } else {
+        lane_isa.run(LanePixels::<false, AOV>::of(tracer, sampler, pixels, samples, out, rec))
+    };
     (radiance, aovs, stats, counts)
 }
 
-/// Traces samples `samples` of each of `pixels` as one pool of paths in
-/// `lane_isa`'s copy of the loop compiled for the scene's kind of tree,
-/// handing each path's radiance to `out` and, with `AOV`, its feature
-/// buffers to `aovs` (indexed as the paths).
-fn run_lanes<const AOV: bool, O: PathOut + ?Sized>(
-    lane_isa: LaneIsa,
-    tracer: &LaneTracer<'_>,
-    sampler: &PixelSampler<'_>,
-    pixels: &[(u32, u32)],
-    samples: Range<u32>,
-    out: &mut O,
-    aovs: &mut [AovSample],
-) -> (RayStats, LaneCounts) {
-    if tracer.on_scene_tree() {
-        lane_isa.run(LanePixels::<true, AOV, O>::of(
-            tracer, sampler, pixels, samples, out, aovs,
-        ))
-    } else {
-        lane_isa.run(LanePixels::<false, AOV, O>::of(
-            tracer, sampler, pixels, samples, out, aovs,
-        ))
-    }
-}
-
-/// The samples of [`run_lanes`]: one pool of paths, traced by the loop
+/// The samples of [`lane_samples`]: one pool of paths, traced by the loop
 /// compiled for the two-level tree where `SCENE` is set, recording their
 /// feature buffers where `AOV` is.
-struct LanePixels<'r, 'a, const SCENE: bool, const AOV: bool, O: PathOut + ?Sized> {
+struct LanePixels<'r, 'a, const SCENE: bool, const AOV: bool> {
     tracer: &'r LaneTracer<'a>,
     sampler: &'r PixelSampler<'a>,
     pixels: &'r [(u32, u32)],
     samples: Range<u32>,
-    radiance: &'r mut O,
+    radiance: &'r mut [Vec3],
     aovs: &'r mut [AovSample],
 }
 
-impl<'r, 'a, const SCENE: bool, const AOV: bool, O: PathOut + ?Sized> LanePixels<'r, 'a, SCENE, AOV, O> {
+impl<'r, 'a, const SCENE: bool, const AOV: bool> LanePixels<'r, 'a, SCENE, AOV> {
     /// The paths of `samples` of each of `pixels`, their radiance into
     /// `radiance` and, with `AOV`, their feature buffers into `aovs`.
     fn of(
@@ -668,7 +627,7 @@ impl<'r, 'a, const SCENE: bool, const AOV: bool, O: PathOut + ?Sized> LanePixels
         sampler: &'r PixelSampler<'a>,
         pixels: &'r [(u32, u32)],
         samples: Range<u32>,
-        radiance: &'r mut O,
+        radiance: &'r mut [Vec3],
         aovs: &'r mut [AovSample],
     ) -> Self {
         LanePixels {
@@ -682,7 +641,7 @@ impl<'r, 'a, const SCENE: bool, const AOV: bool, O: PathOut + ?Sized> LanePixels
     }
 }
 
-impl<const SCENE: bool, const AOV: bool, O: PathOut + ?Sized> Kernel for LanePixels<'_, '_, SCENE, AOV, O> {
+impl<const SCENE: bool, const AOV: bool> Kernel for LanePixels<'_, '_, SCENE, AOV> {
     type Output = (RayStats, LaneCounts);
 
     #[inline(always)]
@@ -702,7 +661,7 @@ impl<const SCENE: bool, const AOV: bool, O: PathOut + ?Sized> Kernel for LanePix
             first: self.samples.start,
         };
         self.tracer
-            .trace_aov::<SCENE, AOV, O>(start, self.radiance, self.aovs, &mut stats, &mut counts);
+            .trace_aov::<SCENE, AOV>(start, self.radiance, self.aovs, &mut stats, &mut counts);
         (stats, counts)
     }
 }

@@ -68,7 +68,7 @@ impl Texels {
     }
 
     /// Texel `i`, if there is one.
-    #[inline(always)]
+    #[inline]
     fn get(&self, i: usize) -> Option<Vec3> {
         match self {
             Texels::Float(t) => t.get(i).copied(),
@@ -84,7 +84,7 @@ impl Texels {
 
     /// Where texel `i` starts in memory and its size in bytes, if there is
     /// one.
-    #[inline(always)]
+    #[inline]
     fn place(&self, i: usize) -> Option<(*const u8, usize)> {
         match self {
             Texels::Float(t) => t.get(i).map(|v| ((v as *const Vec3).cast::<u8>(), size_of::<Vec3>())),
@@ -269,7 +269,7 @@ impl Texture {
     /// assert_eq!(t.footprint_places(&at).count(), 4);
     /// assert_eq!(t.sample_footprint(&at), t.sample_bilinear(uv));
     /// ```
-    #[inline(always)]
+    #[inline]
     pub fn footprint_at(&self, uv: Vec2) -> Footprint {
         let uv = self.transform(uv);
         let u = if uv.x.is_finite() { uv.x } else { 0.0 };
@@ -305,7 +305,7 @@ impl Texture {
     /// [`Texture::sample_bilinear`] at the coordinates `at` was found for.
     /// A texel beyond this texture's end (a footprint of a larger texture)
     /// reads as black.
-    #[inline(always)]
+    #[inline]
     pub fn sample_footprint(&self, at: &Footprint) -> Vec3 {
         let t = |k: usize| self.texels.get(at.corners[k]).unwrap_or(Vec3::ZERO);
         let top = t(0).lerp(t(1), at.fx);
@@ -338,7 +338,7 @@ pub struct Footprint {
 /// `wrap(i, n, mode)` and `wrap(i.saturating_add(1), n, mode)`, the two
 /// columns (or rows) of a bilinear footprint: repeating, the second is the
 /// first plus one, back to 0 at `n` (one remainder instead of two).
-#[inline(always)]
+#[inline]
 fn wrap_pair(i: i64, n: u32, mode: WrapMode) -> (usize, usize) {
     match mode {
         WrapMode::Repeat if i < i64::MAX => {
@@ -349,7 +349,6 @@ fn wrap_pair(i: i64, n: u32, mode: WrapMode) -> (usize, usize) {
     }
 }
 
-#[inline(always)]
 fn wrap(i: i64, n: u32, mode: WrapMode) -> usize {
     let n = n as i64;
     match mode {
