@@ -20,6 +20,11 @@
 #       the time ratio at equal error: the ratio times (Mitsuba's RMSE /
 #       Lucent's)^2, since an unbiased render's MSE falls as 1/spp.
 #       Spp per scene: SPP_CORNELL=64 SPP_SEED=16 SPP_HEAVY=16 (SPP sets all three)
+#       BASELINE=path/to/an/older/lucent also renders each scene with that
+#       binary in every round, between Lucent's render and Mitsuba's, so a
+#       change is measured against Mitsuba and against the build before it in
+#       the same rounds (the VM's speed drifts between runs by more than a
+#       small change); the summary and the table then give its figures too.
 #   xtask/mitsuba/compare.sh heavy [ROUNDS] [SPP]     the same for the heavy scene alone
 #                                                      (default 5 rounds of 16 spp)
 #   xtask/mitsuba/compare.sh errors [SPPS] [SEED]     RMSE/FLIP of Lucent's Cornell box at each
@@ -177,6 +182,7 @@ case $cmd in
       fi
     done
     echo "lucent: $LUCENT ${RENDER_ARGS:-} ($(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo '?')), $(nproc) CPUs: $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
+    [[ -n ${BASELINE:-} ]] && echo "baseline: $BASELINE"
     for round in $(seq "$ROUNDS"); do
       for scene in ${SCENES//,/ }; do
         scene_info "$scene"
@@ -185,6 +191,13 @@ case $cmd in
         line=$(lock "$LUCENT" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}" "${render_args[@]}")
         s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
         echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"lucent\",\"spp\":$spp,\"seed\":$round,\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
+        if [[ -n ${BASELINE:-} ]]; then
+          stem=$OUT/bench/${scene}_baseline_$round
+          before=$(load)
+          line=$(lock "$BASELINE" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}" "${render_args[@]}")
+          s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
+          echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"baseline\",\"spp\":$spp,\"seed\":$round,\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
+        fi
         stem=$OUT/bench/${scene}_mitsuba_$round
         before=$(load)
         json=$(lock "${mts[@]}" --spp "$spp" --seed $((round * seed_scale)) --out "$stem" 2>/dev/null | tail -1)

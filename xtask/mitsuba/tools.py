@@ -148,7 +148,8 @@ def table(path, summary_path=None):
         ref_path = mine[0]["ref"]
         ref = refs.setdefault(ref_path, load(ref_path))
         s = {"scene": scene, "spp": mine[0]["spp"], "rounds": len({r["round"] for r in mine}), "ref": ref_path}
-        for who in ("lucent", "mitsuba"):
+        whos = ["lucent", "mitsuba"] + (["baseline"] if any(r["who"] == "baseline" for r in mine) else [])
+        for who in whos:
             rs = [r for r in mine if r["who"] == who]
             s_per_spp = [r["render_s"] / r["spp"] for r in rs]
             errs = [rmse(load(r["exr"]), ref) for r in rs]
@@ -172,6 +173,15 @@ def table(path, summary_path=None):
         # its samples. Above the plain ratio when Lucent is less noisy per
         # sample, below it when noisier.
         s["ratio_equal_error"] = round(s["ratio_median"] * (s["mitsuba_rmse_mean"] / s["lucent_rmse_mean"]) ** 2, 3)
+        if "baseline" in whos:
+            # The older build in the same rounds: Mitsuba's time over its,
+            # and Lucent's over its (below 1: the change is faster).
+            base = [p["mitsuba"] / p["baseline"] for p in pairs.values() if "mitsuba" in p and "baseline" in p]
+            change = [p["lucent"] / p["baseline"] for p in pairs.values() if "lucent" in p and "baseline" in p]
+            s["baseline_ratio_median"] = round(statistics.median(base), 3)
+            s["baseline_ratio_rounds"] = [round(x, 3) for x in base]
+            s["lucent_over_baseline_median"] = round(statistics.median(change), 3)
+            s["lucent_over_baseline_rounds"] = [round(x, 3) for x in change]
         s["loads"] = [r["load"] for r in mine]
         out.append(s)
         print(json.dumps(s))
@@ -187,6 +197,15 @@ def table(path, summary_path=None):
         print("| %s | %d | %.4f | %.4f | %.2f | %.5f | %.5f | %.2f | %d |" % (
             s["scene"], s["spp"], s["lucent_s_per_spp"], s["mitsuba_s_per_spp"], s["ratio_median"],
             s["lucent_rmse_mean"], s["mitsuba_rmse_mean"], s["ratio_equal_error"], s["rounds"]))
+    if any("baseline_ratio_median" in s for s in out):
+        print()
+        print("| scene | baseline s/spp | Mitsuba / baseline time | Lucent / baseline time | baseline RMSE |")
+        print("|---|---:|---:|---:|---:|")
+        for s in out:
+            if "baseline_ratio_median" in s:
+                print("| %s | %.4f | %.2f | %.3f | %.5f |" % (
+                    s["scene"], s["baseline_s_per_spp"], s["baseline_ratio_median"],
+                    s["lucent_over_baseline_median"], s["baseline_rmse_mean"]))
 
 
 if __name__ == "__main__":
