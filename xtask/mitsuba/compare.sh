@@ -183,21 +183,20 @@ case $cmd in
     done
     echo "lucent: $LUCENT ${RENDER_ARGS:-} ($(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo '?')), $(nproc) CPUs: $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
     [[ -n ${BASELINE:-} ]] && echo "baseline: $BASELINE"
+    # lucent_round WHO BIN: BIN renders the round's scene at its seed under
+    # the lock; one JSON line for WHO (lucent, or the baseline).
+    lucent_round() {
+      local stem=$OUT/bench/${scene}_$1_$round before line s
+      before=$(load)
+      line=$(lock "$2" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}" "${render_args[@]}")
+      s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
+      echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"$1\",\"spp\":$spp,\"seed\":$round,\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
+    }
     for round in $(seq "$ROUNDS"); do
       for scene in ${SCENES//,/ }; do
         scene_info "$scene"
-        stem=$OUT/bench/${scene}_lucent_$round
-        before=$(load)
-        line=$(lock "$LUCENT" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}" "${render_args[@]}")
-        s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
-        echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"lucent\",\"spp\":$spp,\"seed\":$round,\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
-        if [[ -n ${BASELINE:-} ]]; then
-          stem=$OUT/bench/${scene}_baseline_$round
-          before=$(load)
-          line=$(lock "$BASELINE" -q render "$toml" --spp "$spp" --seed "$round" --exr "$stem.exr" -o "$stem.png" "${thread_args[@]}" "${render_args[@]}")
-          s=$(sed -n 's/.*rendered in \([0-9.]*\) s.*/\1/p' <<<"$line")
-          echo "{\"scene\":\"$scene\",\"round\":$round,\"who\":\"baseline\",\"spp\":$spp,\"seed\":$round,\"render_s\":$s,\"load\":\"$before\",\"exr\":\"$stem.exr\",\"ref\":\"$ref\"}" | tee -a "$RES"
-        fi
+        lucent_round lucent "$LUCENT"
+        [[ -n ${BASELINE:-} ]] && lucent_round baseline "$BASELINE"
         stem=$OUT/bench/${scene}_mitsuba_$round
         before=$(load)
         json=$(lock "${mts[@]}" --spp "$spp" --seed $((round * seed_scale)) --out "$stem" 2>/dev/null | tail -1)
