@@ -73,6 +73,10 @@ if [[ -z ${LUCENT:-} ]]; then
   cargo build --release -q -p lucent --manifest-path "$ROOT/Cargo.toml"
   LUCENT=$ROOT/target/release/lucent
 fi
+if [[ -n ${BASELINE:-} && ! -x $BASELINE ]]; then
+  echo "BASELINE=$BASELINE: no such executable (an older build of lucent to time beside this one)" >&2
+  exit 2
+fi
 lock() { flock /tmp/lucent-bench.lock "$@"; }
 load() { cut -d' ' -f1-3 /proc/loadavg; }
 thread_args=()

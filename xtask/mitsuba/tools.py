@@ -165,9 +165,14 @@ def table(path, summary_path=None):
         pairs = {}
         for r in mine:
             pairs.setdefault(r["round"], {})[r["who"]] = r["render_s"]
-        ratios = [p["mitsuba"] / p["lucent"] for p in pairs.values() if "mitsuba" in p and "lucent" in p]
-        s["ratio_median"] = round(statistics.median(ratios), 3)
-        s["ratio_rounds"] = [round(x, 3) for x in ratios]
+
+        def per_round(key, num, den):
+            # num's time over den's in each round that timed both, and their median.
+            ratios = [p[num] / p[den] for p in pairs.values() if num in p and den in p]
+            s[key + "_median"] = round(statistics.median(ratios), 3)
+            s[key + "_rounds"] = [round(x, 3) for x in ratios]
+
+        per_round("ratio", "mitsuba", "lucent")
         # The same ratio at equal error: an unbiased render's MSE falls as
         # 1/spp, so Lucent reaches Mitsuba's RMSE with (RMSE_L / RMSE_M)^2 of
         # its samples. Above the plain ratio when Lucent is less noisy per
@@ -176,12 +181,8 @@ def table(path, summary_path=None):
         if "baseline" in whos:
             # The older build in the same rounds: Mitsuba's time over its,
             # and Lucent's over its (below 1: the change is faster).
-            base = [p["mitsuba"] / p["baseline"] for p in pairs.values() if "mitsuba" in p and "baseline" in p]
-            change = [p["lucent"] / p["baseline"] for p in pairs.values() if "lucent" in p and "baseline" in p]
-            s["baseline_ratio_median"] = round(statistics.median(base), 3)
-            s["baseline_ratio_rounds"] = [round(x, 3) for x in base]
-            s["lucent_over_baseline_median"] = round(statistics.median(change), 3)
-            s["lucent_over_baseline_rounds"] = [round(x, 3) for x in change]
+            per_round("baseline_ratio", "mitsuba", "baseline")
+            per_round("lucent_over_baseline", "lucent", "baseline")
         s["loads"] = [r["load"] for r in mine]
         out.append(s)
         print(json.dumps(s))
