@@ -26,6 +26,7 @@
 
 use crate::{Aabb, Bvh, BvhNode, MAX_DEPTH, TriMesh};
 use lucent_geom::{Mat3A, Vec3, Vec3A};
+use std::ops::Range;
 
 /// The speed-for-quality trade of a build.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -502,10 +503,96 @@ impl Bvh {
             build_prims(prims, ids, params)
         }
     }
+
+    /// A tree over a mesh's triangles whose top levels keep `groups` apart:
+    /// a tree over the groups' boxes (one group per leaf), and below each of
+    /// its leaves the group's own tree, as [`Bvh::build_triangles`] builds
+    /// it over the group's triangles alone. `groups` must be ranges of
+    /// triangles that follow each other from 0 to the last triangle (empty
+    /// ones allowed); otherwise, or with fewer than two groups holding a
+    /// valid triangle, this is [`Bvh::build_triangles`]. Every group's
+    /// subtree starts at its leaf's depth, so the whole tree stays as
+    /// shallow as the builder's depth limit asks.
+    pub(crate) fn build_grouped_triangles(mesh: &TriMesh, groups: &[Range<usize>], params: &BuildParams) -> Bvh {
+        let tiles = groups
+            .iter()
+            .try_fold(0, |end, g| (g.start == end && g.end >= g.start).then_some(g.end));
+        if tiles != Some(mesh.n_triangles()) {
+            return Bvh::build_triangles(mesh, params);
+        }
+        // Each group's valid triangles, their boxes and the group's box.
+        let parts: Vec<(Vec<Box4>, Vec<u32>)> = map_indices(groups.len(), 1, |g| {
+            groups[g]
+                .clone()
+                .map(|t| (Box4::of_triangle(mesh.triangle(t)), t as u32))
+                .filter(|(b, _)| b.is_valid())
+                .unzip()
+        });
+        let parts: Vec<(Vec<Box4>, Vec<u32>)> = parts.into_iter().filter(|(p, _)| !p.is_empty()).collect();
+        if parts.len() < 2 {
+            return Bvh::build_triangles(mesh, params);
+        }
+        let group_boxes: Vec<Aabb> = parts.iter().map(|(p, _)| measure(p).0.to_aabb()).collect();
+        let top = build_prims_at(
+            group_boxes.iter().map(Box4::from_aabb).collect(),
+            (0..parts.len() as u32).collect(),
+            &BuildParams {
+                max_leaf_size: 1,
+                prim_block: 1,
+                ..*params
+            },
+            0,
+        );
+        // The top tree's leaves: (node, group, depth).
+        let mut leaves = Vec::with_capacity(parts.len());
+        let mut stack = vec![(0usize, 0usize)];
+        while let Some((at, depth)) = stack.pop() {
+            let node = &top.nodes[at];
+            if !node.is_leaf() {
+                stack.push((node.first as usize + 1, depth + 1));
+                stack.push((node.first as usize, depth + 1));
+            } else if node.count == 1 {
+                leaves.push((at, top.prim_indices[node.first as usize] as usize, depth));
+            } else {
+                // Not one group per leaf (the builder always splits two).
+                return Bvh::build_triangles(mesh, params);
+            }
+        }
+        let subtrees = map_indices(leaves.len(), 1, |l| {
+            let (_, g, depth) = leaves[l];
+            let (prims, ids) = parts[g].clone();
+            build_prims_at(prims, ids, params, depth)
+        });
+        // Each subtree replaces its leaf: its root takes the leaf's slot,
+        // its other nodes go to the end, its slots after the others'.
+        let mut nodes = top.nodes;
+        let mut prim_indices = Vec::with_capacity(mesh.n_triangles());
+        for (&(at, _, _), sub) in leaves.iter().zip(subtrees) {
+            let node_shift = nodes.len() as u32 - 1;
+            let slot_shift = prim_indices.len() as u32;
+            let moved = |n: BvhNode| BvhNode {
+                first: n.first + if n.is_leaf() { slot_shift } else { node_shift },
+                ..n
+            };
+            let mut sub_nodes = sub.nodes.into_iter().map(moved);
+            if let Some(root) = sub_nodes.next() {
+                nodes[at] = root;
+            }
+            nodes.extend(sub_nodes);
+            prim_indices.extend_from_slice(&sub.prim_indices);
+        }
+        Bvh { nodes, prim_indices }
+    }
 }
 
 /// Builds the tree over valid boxes `prims` with ids `ids`.
-fn build_prims(mut prims: Vec<Box4>, mut ids: Vec<u32>, params: &BuildParams) -> Bvh {
+fn build_prims(prims: Vec<Box4>, ids: Vec<u32>, params: &BuildParams) -> Bvh {
+    build_prims_at(prims, ids, params, 0)
+}
+
+/// [`build_prims`] for a subtree whose root sits at depth `depth` of a
+/// larger tree (the depth limit counts from the larger tree's root).
+fn build_prims_at(mut prims: Vec<Box4>, mut ids: Vec<u32>, params: &BuildParams, depth: usize) -> Bvh {
     if prims.is_empty() {
         return Bvh::default();
     }
@@ -522,7 +609,7 @@ fn build_prims(mut prims: Vec<Box4>, mut ids: Vec<u32>, params: &BuildParams) ->
         prims: &mut prims,
         ids: &mut ids,
         offset: 0,
-        depth: 0,
+        depth,
         bounds,
         centroids,
     });
@@ -961,6 +1048,162 @@ mod tests {
         // The largest finite boxes.
         let huge = vec![Aabb::new(Vec3::splat(-f32::MAX), Vec3::splat(f32::MAX)); 3];
         check_tree(&Bvh::build(&huge, &BuildParams::default()), &huge, 3);
+    }
+
+    /// A mesh of `n` groups: each a cluster of small triangles, the last a
+    /// large floor under them all (the case the grouped build is for), the
+    /// second an empty group.
+    fn grouped_mesh(n: usize, per_group: usize, seed: u64) -> (TriMesh, Vec<Range<usize>>) {
+        let mut rng = Pcg32::new(seed, 3);
+        let mut p = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let (mut positions, mut groups) = (Vec::new(), Vec::new());
+        for g in 0..n {
+            let start = positions.len() / 3;
+            let count = if g == 1 { 0 } else { per_group };
+            let centre = p() * 20.0;
+            for _ in 0..count {
+                let c = centre + p();
+                positions.extend([c, c + 0.1 * p(), c + 0.1 * p()]);
+            }
+            groups.push(start..start + count);
+        }
+        let start = positions.len() / 3;
+        positions.extend([
+            Vec3::new(-5.0, 0.0, -5.0),
+            Vec3::new(25.0, 0.0, -5.0),
+            Vec3::new(25.0, 0.0, 25.0),
+            Vec3::new(-5.0, 0.0, 25.0),
+            Vec3::new(-5.0, 0.0, -5.0),
+            Vec3::new(25.0, 0.0, 25.0),
+        ]);
+        groups.push(start..start + 2);
+        let indices = (0..positions.len() as u32 / 3)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        (TriMesh::new(positions, indices).unwrap_or_default(), groups)
+    }
+
+    fn triangle_boxes(mesh: &TriMesh) -> Vec<Aabb> {
+        (0..mesh.n_triangles())
+            .map(|t| Aabb::from_points(mesh.triangle(t)))
+            .collect()
+    }
+
+    /// The grouped build is a sound tree over every triangle in which each
+    /// group's triangles fill one subtree: a run of leaf slots of their
+    /// own, under one node whose box is the group's, and no leaf mixes two
+    /// groups.
+    #[test]
+    fn a_grouped_build_gives_each_group_a_subtree_of_its_own() {
+        let (mesh, groups) = grouped_mesh(12, 40, 1);
+        let boxes = triangle_boxes(&mesh);
+        let group_of = |t: u32| groups.iter().position(|g| g.contains(&(t as usize)));
+        for params in [
+            BuildParams::default(),
+            BuildParams::for_quality(BuildQuality::High),
+            BuildParams {
+                max_leaf_size: 1,
+                ..BuildParams::default()
+            },
+        ] {
+            let bvh = Bvh::build_grouped_triangles(&mesh, &groups, &params);
+            check_tree(&bvh, &boxes, mesh.n_triangles());
+            let slots: Vec<Option<usize>> = bvh.prim_indices().iter().map(|&t| group_of(t)).collect();
+            let mut runs = slots.clone();
+            runs.dedup();
+            assert_eq!(
+                runs.len(),
+                groups.len() - 1,
+                "one run of slots per non-empty group: {runs:?}"
+            );
+            for (g, range) in groups.iter().enumerate().filter(|(_, r)| !r.is_empty()) {
+                let group_box = boxes[range.clone()].iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
+                let first = slots.iter().position(|&s| s == Some(g)).unwrap_or(usize::MAX);
+                let root = bvh.nodes().iter().any(|n| {
+                    n.aabb() == group_box && {
+                        // The node's leaves cover exactly the group's run.
+                        let mut stack = vec![*n];
+                        let (mut lo, mut hi) = (usize::MAX, 0);
+                        while let Some(m) = stack.pop() {
+                            if m.is_leaf() {
+                                lo = lo.min(m.first as usize);
+                                hi = hi.max((m.first + m.count) as usize);
+                            } else {
+                                stack.extend_from_slice(&bvh.nodes()[m.first as usize..m.first as usize + 2]);
+                            }
+                        }
+                        lo == first && hi - lo == range.len()
+                    }
+                });
+                assert!(root, "group {g} has no subtree of its own");
+            }
+        }
+    }
+
+    /// Groups that do not tile the mesh, or fewer than two groups with a
+    /// valid triangle, build the plain tree; invalid triangles inside
+    /// groups are left out as the plain build leaves them out.
+    #[test]
+    fn a_grouped_build_falls_back_to_the_plain_one() {
+        let (mesh, _) = grouped_mesh(4, 30, 2);
+        let n = mesh.n_triangles();
+        let params = BuildParams::default();
+        let plain = Bvh::build_triangles(&mesh, &params);
+        let same = |groups: &[Range<usize>]| {
+            let b = Bvh::build_grouped_triangles(&mesh, groups, &params);
+            b.nodes() == plain.nodes() && b.prim_indices() == plain.prim_indices()
+        };
+        assert!(same(&[]));
+        assert!(same(std::slice::from_ref(&(0..n))));
+        assert!(same(&[0..10, 11..n]), "a gap");
+        assert!(same(&[0..12, 10..n]), "an overlap");
+        assert!(same(&[0..10, 10..n + 1]), "past the end");
+        assert!(same(&[0..10, 10..n - 1]), "short of the end");
+        assert!(same(&[10..n, 0..10]), "out of order");
+        #[allow(clippy::reversed_empty_ranges, reason = "a reversed range is the input under test")]
+        let reversed = [0..10, 10..5, 5..n];
+        assert!(same(&reversed), "a reversed range");
+        assert!(same(&[0..0, 0..n, n..n]), "one group with triangles");
+        assert!(!same(&[0..30, 30..n]));
+        // A group of invalid triangles only counts as empty.
+        let mut positions = mesh.positions().to_vec();
+        positions.extend([Vec3::splat(f32::NAN); 3]);
+        let mut indices = mesh.indices().to_vec();
+        indices.push([n as u32 * 3, n as u32 * 3 + 1, n as u32 * 3 + 2]);
+        let with_nan = TriMesh::new(positions, indices).unwrap_or_default();
+        let b = Bvh::build_grouped_triangles(&with_nan, &[0..30, 30..n, n..n + 1], &params);
+        check_tree(&b, &triangle_boxes(&with_nan), n);
+        let b = Bvh::build_grouped_triangles(&with_nan, &[0..n, n..n + 1], &params);
+        let p = Bvh::build_triangles(&with_nan, &params);
+        assert!(b.nodes() == p.nodes() && b.prim_indices() == p.prim_indices());
+    }
+
+    /// Many groups whose boxes spread exponentially (a top tree that peels
+    /// one group per level), each with enough triangles to need levels of
+    /// its own: the whole tree stays within the depth limit.
+    #[test]
+    fn a_grouped_build_keeps_the_depth_bounded() {
+        let mut positions = Vec::new();
+        let mut groups = Vec::new();
+        for g in 0..120 {
+            let c = Vec3::splat(2f32.powi(g - 60));
+            let start = positions.len() / 3;
+            for k in 0..64 {
+                let d = c * (1.0 + k as f32 * 1e-3);
+                positions.extend([d, d * 1.0001, d + Vec3::X * c.x * 1e-4]);
+            }
+            groups.push(start..start + 64);
+        }
+        let indices = (0..positions.len() as u32 / 3)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        let mesh = TriMesh::new(positions, indices).unwrap_or_default();
+        let params = BuildParams {
+            max_leaf_size: 1,
+            ..BuildParams::default()
+        };
+        let bvh = Bvh::build_grouped_triangles(&mesh, &groups, &params);
+        check_tree(&bvh, &triangle_boxes(&mesh), mesh.n_triangles());
     }
 
     #[test]

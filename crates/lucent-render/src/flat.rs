@@ -84,7 +84,9 @@ impl TracedTree<'_> {
 }
 
 /// A single-level BVH over render-space triangles, with each triangle's
-/// instance and index in its mesh.
+/// instance and index in its mesh. Its top levels keep the instances apart
+/// ([`MeshBvh::build_grouped`], one group per instance), as a two-level
+/// tree would, and each instance's triangles get a subtree of their own.
 #[derive(Clone, Debug)]
 pub struct FlatBvh {
     bvh: MeshBvh,
@@ -115,10 +117,13 @@ impl FlatBvh {
         let mut positions: Vec<Vec3> = Vec::with_capacity(3 * instanced);
         let mut indices: Vec<[u32; 3]> = Vec::with_capacity(instanced);
         let mut owner = Vec::with_capacity(instanced);
+        // Each instance's triangles, a group of the tree's top levels.
+        let mut groups = Vec::with_capacity(instances.len());
         for (i, inst) in instances.iter().enumerate() {
             let Some(mesh) = meshes.get(inst.mesh as usize) else {
                 continue;
             };
+            groups.push(indices.len()..indices.len() + mesh.n_triangles());
             for t in 0..mesh.n_triangles() {
                 // Three fresh corners per triangle, in the mesh's corner
                 // order, so the barycentrics of a hit are the mesh's own.
@@ -130,7 +135,7 @@ impl FlatBvh {
         }
         let mesh = TriMesh::new(positions, indices).ok()?;
         Some(FlatBvh {
-            bvh: MeshBvh::build(&mesh, params),
+            bvh: MeshBvh::build_grouped(&mesh, &groups, params),
             owner,
         })
     }
