@@ -1313,10 +1313,16 @@ pub(crate) mod tests {
         indices.extend(soup.indices().iter().map(|t| t.map(|i| i + offset)));
         let mesh = TriMesh::new(positions, indices).unwrap_or_default();
         assert!(mesh.n_triangles() > 50_000);
-        let build = |threads: usize| {
+        // The sphere and the soup as two groups, and the plain build.
+        let groups = [
+            0..shapes::icosphere(5).n_triangles(),
+            shapes::icosphere(5).n_triangles()..mesh.n_triangles(),
+        ];
+        let build = |threads: usize, grouped: bool| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
             let pool = pool.unwrap_or_else(|e| panic!("thread pool: {e}"));
-            pool.install(|| MeshBvh::build(&mesh, &BuildParams::default()))
+            let groups: &[Range<usize>] = if grouped { &groups } else { &[] };
+            pool.install(|| MeshBvh::build_grouped(&mesh, groups, &BuildParams::default()))
         };
         let bits = |b: &MeshBvh| -> Vec<u32> {
             b.packs
@@ -1330,12 +1336,14 @@ pub(crate) mod tests {
                 })
                 .collect()
         };
-        let one = build(1);
-        for threads in [2, 3] {
-            let many = build(threads);
-            assert!(one.wide == many.wide, "{threads} threads: another tree");
-            assert!(bits(&one) == bits(&many), "{threads} threads: other packs");
-            assert_eq!(one.stats(), many.stats());
+        for grouped in [false, true] {
+            let one = build(1, grouped);
+            for threads in [2, 3] {
+                let many = build(threads, grouped);
+                assert!(one.wide == many.wide, "{threads} threads: another tree");
+                assert!(bits(&one) == bits(&many), "{threads} threads: other packs");
+                assert_eq!(one.stats(), many.stats());
+            }
         }
     }
 
