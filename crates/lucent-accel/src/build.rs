@@ -973,7 +973,7 @@ fn split_median(task: &mut Task) -> usize {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use lucent_geom::Pcg32;
 
@@ -1083,7 +1083,8 @@ mod tests {
         (TriMesh::new(positions, indices).unwrap_or_default(), groups)
     }
 
-    fn triangle_boxes(mesh: &TriMesh) -> Vec<Aabb> {
+    /// Each triangle's box, in the mesh's order (also `build_ref`'s tests').
+    pub(crate) fn triangle_boxes(mesh: &TriMesh) -> Vec<Aabb> {
         (0..mesh.n_triangles())
             .map(|t| Aabb::from_points(mesh.triangle(t)))
             .collect()

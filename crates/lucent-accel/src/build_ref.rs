@@ -290,7 +290,7 @@ fn split_median(prims: &mut [PrimRef], cb: &Aabb) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::TriMesh;
+    use crate::build::tests::triangle_boxes;
     use lucent_geom::Pcg32;
 
     /// The nodes' boxes as bits (so that -0 and +0 differ), their links and
@@ -345,12 +345,6 @@ mod tests {
                 );
             }
         }
-    }
-
-    fn triangle_boxes(mesh: &TriMesh) -> Vec<Aabb> {
-        (0..mesh.n_triangles())
-            .map(|t| Aabb::from_points(mesh.triangle(t)))
-            .collect()
     }
 
     #[test]
