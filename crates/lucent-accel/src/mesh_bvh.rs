@@ -535,8 +535,10 @@ impl MeshBvh {
     /// build it over that group alone. `groups` are ranges of triangle
     /// indices that follow each other from 0 to the mesh's last triangle;
     /// any other list (or one with fewer than two groups holding a
-    /// triangle) builds the tree of [`MeshBvh::build`]. The hits are the
-    /// same either way; only the speed differs.
+    /// triangle) builds the tree of [`MeshBvh::build`]. Queries find the
+    /// same hits either way (the same distances; the same triangle too,
+    /// unless two lie at exactly the same distance, where the one first in
+    /// the tree's order wins); only the speed differs.
     ///
     /// Why: the builder's surface area heuristic bins triangles by their
     /// centroids, so a large triangle (a floor, a wall) lands in a bin with
