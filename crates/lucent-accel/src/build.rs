@@ -520,28 +520,30 @@ impl Bvh {
         if tiles != Some(mesh.n_triangles()) {
             return Bvh::build_triangles(mesh, params);
         }
-        // Each group's valid triangles, their boxes and the group's box.
-        let parts: Vec<(Vec<Box4>, Vec<u32>)> = map_indices(groups.len(), 1, |g| {
-            groups[g]
+        // Each group's valid triangles' boxes and ids, and the boxes
+        // around them and around their centroids.
+        type Part = (Vec<Box4>, Vec<u32>, (Box4, Box4));
+        let parts: Vec<Part> = map_indices(groups.len(), 1, |g| {
+            let (prims, ids): (Vec<Box4>, Vec<u32>) = groups[g]
                 .clone()
                 .map(|t| (Box4::of_triangle(mesh.triangle(t)), t as u32))
                 .filter(|(b, _)| b.is_valid())
-                .unzip()
+                .unzip();
+            let measured = measure(&prims);
+            (prims, ids, measured)
         });
-        let parts: Vec<(Vec<Box4>, Vec<u32>)> = parts.into_iter().filter(|(p, _)| !p.is_empty()).collect();
+        let parts: Vec<Part> = parts.into_iter().filter(|(p, _, _)| !p.is_empty()).collect();
         if parts.len() < 2 {
             return Bvh::build_triangles(mesh, params);
         }
-        let group_boxes: Vec<Aabb> = parts.iter().map(|(p, _)| measure(p).0.to_aabb()).collect();
-        let top = build_prims_at(
-            group_boxes.iter().map(Box4::from_aabb).collect(),
+        let top = build_prims(
+            parts.iter().map(|(_, _, (bounds, _))| *bounds).collect(),
             (0..parts.len() as u32).collect(),
             &BuildParams {
                 max_leaf_size: 1,
                 prim_block: 1,
                 ..*params
             },
-            0,
         );
         // The top tree's leaves: (node, group, depth).
         let mut leaves = Vec::with_capacity(parts.len());
@@ -562,8 +564,8 @@ impl Bvh {
             let (_, g, depth) = leaves[l];
             // The builder reorders its input in place, so each group's
             // build takes a copy (36 bytes a triangle, once per build).
-            let (prims, ids) = parts[g].clone();
-            build_prims_at(prims, ids, params, depth)
+            let (prims, ids, measured) = parts[g].clone();
+            build_prims_at(prims, ids, measured, params, depth)
         });
         // Each subtree replaces its leaf: its root takes the leaf's slot,
         // its other nodes go to the end, its slots after the others'.
@@ -589,16 +591,23 @@ impl Bvh {
 
 /// Builds the tree over valid boxes `prims` with ids `ids`.
 fn build_prims(prims: Vec<Box4>, ids: Vec<u32>, params: &BuildParams) -> Bvh {
-    build_prims_at(prims, ids, params, 0)
+    let measured = measure(&prims);
+    build_prims_at(prims, ids, measured, params, 0)
 }
 
-/// [`build_prims`] for a subtree whose root sits at depth `depth` of a
-/// larger tree (the depth limit counts from the larger tree's root).
-fn build_prims_at(mut prims: Vec<Box4>, mut ids: Vec<u32>, params: &BuildParams, depth: usize) -> Bvh {
+/// [`build_prims`] given the boxes around `prims` and around their
+/// centroids ([`measure`]), for a subtree whose root sits at depth `depth`
+/// of a larger tree (the depth limit counts from the larger tree's root).
+fn build_prims_at(
+    mut prims: Vec<Box4>,
+    mut ids: Vec<u32>,
+    (bounds, centroids): (Box4, Box4),
+    params: &BuildParams,
+    depth: usize,
+) -> Bvh {
     if prims.is_empty() {
         return Bvh::default();
     }
-    let (bounds, centroids) = measure(&prims);
     let params = params.clamped();
     let builder = Builder {
         params,
