@@ -35,6 +35,16 @@
 #   xtask/mitsuba/compare.sh seeds [SPP] [SEEDS]      Cornell: Lucent (seed s) and Mitsuba (seed
 #                                                      1000 s) at SPP for each seed, alternately;
 #                                                      both compared (default 64 spp, seeds "11,12,13,14")
+#   xtask/mitsuba/compare.sh error-seeds SCENE [SPP] [FIRST] [LAST]
+#                                                      equal error, measured apart from time: SCENE
+#                                                      (cornell, seed or heavy) at SPP (the bench's
+#                                                      default) by both renderers, Lucent seed s and
+#                                                      Mitsuba seed 1000 s for s in FIRST..LAST
+#                                                      (default 1..40), untimed under nice, kept in
+#                                                      OUT/errors_SCENE_SPP and reused; prints each
+#                                                      one's mean MSE against the reference, their
+#                                                      ratio with a bootstrap 90 % interval, the
+#                                                      per-seed ratios' median and the means' bias
 #   xtask/mitsuba/compare.sh blocks STEM              bias check: 8x8-block means of STEM.exr
 #                                                      against the Cornell reference's
 #
@@ -96,6 +106,41 @@ render() {
 }
 compare() { (cd "$PEER" && "$PY" cornell.py compare --ref "$PEER/out/ref" "$@"); }
 
+REF_SPP=${REF_SPP:-2048}
+# scene_info NAME: sets toml, spp, ref, mts (Mitsuba's render command,
+# which takes --spp N --seed S --out STEM) and seed_scale (the peer's
+# passes of 64 spp are seeded from --seed up, so its rounds' seeds lie
+# 1000 apart; twin.py spaces them itself).
+declare -A REF_KEY=()
+scene_info() {
+  seed_scale=1
+  case $1 in
+    cornell)
+      toml=$ROOT/res/scenes/cornell-mitsuba.toml spp=${SPP_CORNELL:-${SPP:-64}} ref=$PEER/out/ref.exr
+      mts=(env -C "$PEER" "$PY" cornell.py render --variant llvm_ad_rgb) seed_scale=1000 ;;
+    seed | heavy)
+      toml=$ROOT/res/scenes/$1.toml
+      [[ $1 == seed ]] && toml=$ROOT/res/scenes/seed-mitsuba.toml
+      if [[ $1 == seed ]]; then spp=${SPP_SEED:-${SPP:-16}}; else spp=${SPP_HEAVY:-${SPP:-16}}; fi
+      mts=("$PY" "$ROOT/xtask/mitsuba/$1.py" render)
+      # The reference is keyed by every file that shapes the scene
+      # (worked out once per run).
+      [[ -n ${REF_KEY[$1]:-} ]] || REF_KEY[$1]=$( (cat "$toml" "$ROOT"/xtask/mitsuba/{twin,"$1"}.py; sed -n 's/^mesh = "\(.*\)"/\1/p; s/^texture = "\(.*\)"/\1/p' "$toml" |
+        sort -u | (cd "$(dirname "$toml")" && xargs cat); "$PY" -c 'import mitsuba; print(mitsuba.__version__)') |
+        sha256sum | cut -c1-12)
+      ref=$OUT/ref_$1_${REF_KEY[$1]}_$REF_SPP.exr ;;
+    *) echo "unknown scene '$1' (cornell, seed, heavy)" >&2; exit 2 ;;
+  esac
+}
+# ensure_ref: renders the reference of the scene scene_info last named, once
+# (under nice, outside the lock).
+ensure_ref() {
+  if [[ ! -f $ref ]]; then
+    echo "rendering the $scene reference ($REF_SPP spp, once) into $ref"
+    nice -n 19 "${mts[@]}" --spp "$REF_SPP" --seed 99999 --out "${ref%.exr}" >/dev/null
+  fi
+}
+
 cmd=${1:-errors}
 case $cmd in
   errors)
@@ -140,6 +185,25 @@ case $cmd in
   blocks)
     "$PY" "$HELP" blocks "$PEER/out/ref.exr" "${2:?stem}.exr"
     ;;
+  error-seeds)
+    # Untimed renders of seeds FIRST..LAST by both renderers (Lucent seed s,
+    # Mitsuba seed 1000 s, as `seeds` pairs them), under nice, kept in OUT
+    # and reused; then the error study of tools.py seeds_error.
+    scene=${2:?scene (cornell, seed or heavy)}
+    scene_info "$scene"
+    spp=${3:-$spp}
+    FIRST=${4:-1}
+    LAST=${5:-40}
+    ensure_ref
+    dir=$OUT/errors_${scene}_$spp
+    mkdir -p "$dir"
+    for s in $(seq "$FIRST" "$LAST"); do
+      [[ -f $dir/lucent_$s.exr ]] || nice "$LUCENT" -q render "$toml" --spp "$spp" --seed "$s" \
+        --exr "$dir/lucent_$s.exr" -o "$dir/lucent_$s.png" "${thread_args[@]}" "${render_args[@]}" >/dev/null
+      [[ -f $dir/mitsuba_$s.exr ]] || nice "${mts[@]}" --spp "$spp" --seed $((s * 1000)) --out "$dir/mitsuba_$s" >/dev/null 2>&1
+    done
+    "$PY" "$HELP" seeds_error "$ref" "$dir" "$FIRST" "$LAST"
+    ;;
   bench | heavy)
     ROUNDS=${2:-5}
     if [[ $cmd == heavy ]]; then
@@ -148,42 +212,13 @@ case $cmd in
     else
       SCENES=${3:-cornell,seed,heavy}
     fi
-    REF_SPP=${REF_SPP:-2048}
     RES=$OUT/bench.jsonl
     mkdir -p "$OUT/bench"
     : >"$RES"
-    # scene_info NAME: sets toml, spp, ref, mts (Mitsuba's render command,
-    # which takes --spp N --seed S --out STEM) and seed_scale (the peer's
-    # passes of 64 spp are seeded from --seed up, so its rounds' seeds lie
-    # 1000 apart; twin.py spaces them itself).
-    declare -A REF_KEY=()
-    scene_info() {
-      seed_scale=1
-      case $1 in
-        cornell)
-          toml=$ROOT/res/scenes/cornell-mitsuba.toml spp=${SPP_CORNELL:-${SPP:-64}} ref=$PEER/out/ref.exr
-          mts=(env -C "$PEER" "$PY" cornell.py render --variant llvm_ad_rgb) seed_scale=1000 ;;
-        seed | heavy)
-          toml=$ROOT/res/scenes/$1.toml
-          [[ $1 == seed ]] && toml=$ROOT/res/scenes/seed-mitsuba.toml
-          if [[ $1 == seed ]]; then spp=${SPP_SEED:-${SPP:-16}}; else spp=${SPP_HEAVY:-${SPP:-16}}; fi
-          mts=("$PY" "$ROOT/xtask/mitsuba/$1.py" render)
-          # The reference is keyed by every file that shapes the scene
-          # (worked out once per run).
-          [[ -n ${REF_KEY[$1]:-} ]] || REF_KEY[$1]=$( (cat "$toml" "$ROOT"/xtask/mitsuba/{twin,"$1"}.py; sed -n 's/^mesh = "\(.*\)"/\1/p; s/^texture = "\(.*\)"/\1/p' "$toml" |
-            sort -u | (cd "$(dirname "$toml")" && xargs cat); "$PY" -c 'import mitsuba; print(mitsuba.__version__)') |
-            sha256sum | cut -c1-12)
-          ref=$OUT/ref_$1_${REF_KEY[$1]}_$REF_SPP.exr ;;
-        *) echo "unknown scene '$1' (cornell, seed, heavy)" >&2; exit 2 ;;
-      esac
-    }
-    # References first (under nice, outside the lock), so no timed round waits on one.
+    # References first, so no timed round waits on one.
     for scene in ${SCENES//,/ }; do
       scene_info "$scene"
-      if [[ ! -f $ref ]]; then
-        echo "rendering the $scene reference ($REF_SPP spp, once) into $ref"
-        nice -n 19 "${mts[@]}" --spp "$REF_SPP" --seed 99999 --out "${ref%.exr}" >/dev/null
-      fi
+      ensure_ref
     done
     echo "lucent: $LUCENT ${RENDER_ARGS:-} ($(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null || echo '?')), $(nproc) CPUs: $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
     [[ -n ${BASELINE:-} ]] && echo "baseline: $BASELINE"
@@ -212,7 +247,7 @@ case $cmd in
     "$PY" "$HELP" table "$RES" "$OUT/bench_summary.jsonl"
     ;;
   *)
-    echo "usage: $0 bench|heavy|errors|converge|seeds|blocks ..." >&2
+    echo "usage: $0 bench|heavy|errors|converge|seeds|error-seeds|blocks ..." >&2
     exit 2
     ;;
 esac

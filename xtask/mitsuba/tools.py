@@ -132,6 +132,45 @@ def pair(a_path, b_path, ref_path=None):
     print(json.dumps(out))
 
 
+def seeds_error(ref_path, folder, first, last):
+    """Equal error measured apart from time: FOLDER holds lucent_S.exr and
+    mitsuba_S.exr for S in FIRST..LAST (compare.sh error-seeds). Prints one
+    JSON line: each renderer's mean and median MSE against the reference
+    and mean RMSE, Mitsuba's mean MSE over Lucent's with a bootstrap 90 %
+    interval (resampling seeds), the median of the per-seed ratios, how
+    many seeds Lucent's error is the lower, and how far each renderer's
+    mean image lies from the reference (its bias plus what noise is left)."""
+    ref = load(ref_path)
+    seeds = list(range(int(first), int(last) + 1))
+    mse, means = {}, {}
+    for who in ("lucent", "mitsuba"):
+        acc, errs = 0.0, []
+        for s in seeds:
+            a = load("%s/%s_%d.exr" % (folder, who, s))
+            acc = acc + a
+            errs.append(float(np.mean((a - ref) ** 2)))
+        mse[who] = np.array(errs)
+        means[who] = acc / len(seeds)
+    ratio = float(mse["mitsuba"].mean() / mse["lucent"].mean())
+    rng = np.random.default_rng(1)
+    boot = []
+    for _ in range(2000):
+        i = rng.integers(0, len(seeds), len(seeds))
+        boot.append(mse["mitsuba"][i].mean() / mse["lucent"][i].mean())
+    lo, hi = np.percentile(boot, [5, 95])
+    out = {"seeds": len(seeds), "first": seeds[0], "last": seeds[-1],
+           "mitsuba_over_lucent_mse": round(ratio, 4),
+           "bootstrap_90": [round(float(lo), 3), round(float(hi), 3)],
+           "per_seed_ratio_median": round(float(np.median(mse["mitsuba"] / mse["lucent"])), 4),
+           "lucent_lower": int((mse["lucent"] < mse["mitsuba"]).sum())}
+    for who in ("lucent", "mitsuba"):
+        out[who] = {"mean_mse": float("%.4g" % mse[who].mean()), "median_mse": float("%.4g" % np.median(mse[who])),
+                    "mean_rmse": round(float(np.sqrt(mse[who]).mean()), 5),
+                    "image_mean": [round(float(x), 5) for x in means[who].reshape(-1, 3).mean(0)],
+                    "rmse_of_mean_image": round(rmse(means[who], ref), 5)}
+    print(json.dumps(out))
+
+
 def rmse(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2)))
 
@@ -221,6 +260,8 @@ if __name__ == "__main__":
         summarize(sys.argv[2])
     elif cmd == "pair":
         pair(*sys.argv[2:5])
+    elif cmd == "seeds_error":
+        seeds_error(*sys.argv[2:6])
     elif cmd == "table":
         table(*sys.argv[2:4])
     else:
