@@ -494,7 +494,11 @@ impl Bvh {
     /// Builds a BVH over a mesh's triangles (as [`Bvh::build`] over their
     /// boxes, without the intermediate array).
     pub(crate) fn build_triangles(mesh: &TriMesh, params: &BuildParams) -> Bvh {
-        let prims = map_indices(mesh.n_triangles(), CHUNK, |t| Box4::of_triangle(mesh.triangle(t)));
+        Self::build_triangle_boxes(triangle_boxes(mesh), params)
+    }
+
+    /// [`Bvh::build_triangles`] from the triangles' boxes, in mesh order.
+    fn build_triangle_boxes(prims: Vec<Box4>, params: &BuildParams) -> Bvh {
         if prims.iter().all(Box4::is_valid) {
             let ids = (0..prims.len() as u32).collect();
             build_prims(prims, ids, params)
@@ -520,13 +524,14 @@ impl Bvh {
         if tiles != Some(mesh.n_triangles()) {
             return Bvh::build_triangles(mesh, params);
         }
+        let boxes = triangle_boxes(mesh);
         // Each group's valid triangles' boxes and ids, and the boxes
         // around them and around their centroids.
         type Part = (Vec<Box4>, Vec<u32>, (Box4, Box4));
         let parts: Vec<Part> = map_indices(groups.len(), 1, |g| {
             let (prims, ids): (Vec<Box4>, Vec<u32>) = groups[g]
                 .clone()
-                .map(|t| (Box4::of_triangle(mesh.triangle(t)), t as u32))
+                .map(|t| (boxes[t], t as u32))
                 .filter(|(b, _)| b.is_valid())
                 .unzip();
             let measured = measure(&prims);
@@ -534,7 +539,7 @@ impl Bvh {
         });
         let parts: Vec<Part> = parts.into_iter().filter(|(p, _, _)| !p.is_empty()).collect();
         if parts.len() < 2 {
-            return Bvh::build_triangles(mesh, params);
+            return Bvh::build_triangle_boxes(boxes, params);
         }
         let top = build_prims(
             parts.iter().map(|(_, _, (bounds, _))| *bounds).collect(),
@@ -557,7 +562,7 @@ impl Bvh {
                 leaves.push((at, top.prim_indices[node.first as usize] as usize, depth));
             } else {
                 // Not one group per leaf (the builder always splits two).
-                return Bvh::build_triangles(mesh, params);
+                return Bvh::build_triangle_boxes(boxes, params);
             }
         }
         let subtrees = map_indices(leaves.len(), 1, |l| {
@@ -587,6 +592,12 @@ impl Bvh {
         }
         Bvh { nodes, prim_indices }
     }
+}
+
+/// Each triangle's box, in the mesh's order (in parallel chunks with the
+/// feature).
+fn triangle_boxes(mesh: &TriMesh) -> Vec<Box4> {
+    map_indices(mesh.n_triangles(), CHUNK, |t| Box4::of_triangle(mesh.triangle(t)))
 }
 
 /// Builds the tree over valid boxes `prims` with ids `ids`.
@@ -1095,7 +1106,7 @@ pub(crate) mod tests {
     }
 
     /// Each triangle's box, in the mesh's order (also `build_ref`'s tests').
-    pub(crate) fn triangle_boxes(mesh: &TriMesh) -> Vec<Aabb> {
+    pub(crate) fn triangle_aabbs(mesh: &TriMesh) -> Vec<Aabb> {
         (0..mesh.n_triangles())
             .map(|t| Aabb::from_points(mesh.triangle(t)))
             .collect()
@@ -1108,7 +1119,7 @@ pub(crate) mod tests {
     #[test]
     fn a_grouped_build_gives_each_group_a_subtree_of_its_own() {
         let (mesh, groups) = grouped_mesh(12, 40, 1);
-        let boxes = triangle_boxes(&mesh);
+        let boxes = triangle_aabbs(&mesh);
         let group_of = |t: u32| groups.iter().position(|g| g.contains(&(t as usize)));
         for params in [
             BuildParams::default(),
@@ -1184,7 +1195,7 @@ pub(crate) mod tests {
         indices.push([n as u32 * 3, n as u32 * 3 + 1, n as u32 * 3 + 2]);
         let with_nan = TriMesh::new(positions, indices).unwrap_or_default();
         let b = Bvh::build_grouped_triangles(&with_nan, &[0..30, 30..n, n..n + 1], &params);
-        check_tree(&b, &triangle_boxes(&with_nan), n);
+        check_tree(&b, &triangle_aabbs(&with_nan), n);
         let b = Bvh::build_grouped_triangles(&with_nan, &[0..n, n..n + 1], &params);
         let p = Bvh::build_triangles(&with_nan, &params);
         assert!(b.nodes() == p.nodes() && b.prim_indices() == p.prim_indices());
@@ -1215,7 +1226,7 @@ pub(crate) mod tests {
             ..BuildParams::default()
         };
         let bvh = Bvh::build_grouped_triangles(&mesh, &groups, &params);
-        check_tree(&bvh, &triangle_boxes(&mesh), mesh.n_triangles());
+        check_tree(&bvh, &triangle_aabbs(&mesh), mesh.n_triangles());
     }
 
     #[test]

@@ -290,7 +290,7 @@ fn split_median(prims: &mut [PrimRef], cb: &Aabb) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::tests::triangle_boxes;
+    use crate::build::tests::triangle_aabbs;
     use lucent_geom::Pcg32;
 
     /// The nodes' boxes as bits (so that -0 and +0 differ), their links and
@@ -361,7 +361,7 @@ mod tests {
             let parts = lucent_assets::load_mesh(&res.join(rel)).map(|(parts, _)| parts);
             let parts = parts.unwrap_or_else(|e| panic!("{rel}: {e}"));
             let mesh = &parts[0].mesh;
-            let boxes = triangle_boxes(mesh);
+            let boxes = triangle_aabbs(mesh);
             assert_same_tree(&boxes, rel);
             // Building from the mesh gives the tree built from its boxes.
             let params = BuildParams::default();

@@ -1316,10 +1316,8 @@ pub(crate) mod tests {
         let mesh = TriMesh::new(positions, indices).unwrap_or_default();
         assert!(mesh.n_triangles() > 50_000);
         // The sphere and the soup as two groups, and the plain build.
-        let groups = [
-            0..shapes::icosphere(5).n_triangles(),
-            shapes::icosphere(5).n_triangles()..mesh.n_triangles(),
-        ];
+        let sphere = mesh.n_triangles() - soup.n_triangles();
+        let groups = [0..sphere, sphere..mesh.n_triangles()];
         let build = |threads: usize, grouped: bool| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
             let pool = pool.unwrap_or_else(|e| panic!("thread pool: {e}"));
