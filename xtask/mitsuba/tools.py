@@ -142,6 +142,8 @@ def seeds_error(ref_path, folder, first, last):
     mean image lies from the reference (its bias plus what noise is left)."""
     ref = load(ref_path)
     seeds = list(range(int(first), int(last) + 1))
+    if not seeds:
+        sys.exit("seeds_error: no seeds from %s to %s (FIRST must not exceed LAST)" % (first, last))
     mse, means = {}, {}
     for who in ("lucent", "mitsuba"):
         acc, errs = 0.0, []
